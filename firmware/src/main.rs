@@ -1,0 +1,3 @@
+//! Workcell controller firmware (placeholder until the board bring-up lands).
+#![no_std]
+#![no_main]

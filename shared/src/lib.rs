@@ -1,0 +1,33 @@
+//! Shared, `no_std`, heap-free core of the self-calibrating workcell.
+//!
+//! The same code runs in the firmware (Cortex-M4F) and in the host simulator.
+//! Frames, units and the observation contract follow
+//! `../shared/spec/frames-and-log.md`; equation numbers refer to Ghosh, Xiao,
+//! Xi and Tarn, "Multisensor-based robotic manipulation in an uncalibrated
+//! manufacturing workcell".
+//!
+//! Layout, one concept per module:
+//! - [`observation`]: the observation log's records and the calibration result (the spec's contract).
+//! - [`protocol`]: serial protocol v1 (postcard messages, CRC-checked, COBS-framed).
+//! - [`calibration`]: virtual rotation, part localisation, robot-to-disc self-calibration (Sections 2 and 3).
+//! - [`robot`]: PUMA 560 kinematics and dynamics (Section 4, Eq 16).
+//! - [`control`]: task-space computed-torque control (Eq 23).
+//! - [`app`]: the controller application that the firmware and the in-process simulator both run.
+#![cfg_attr(not(test), no_std)]
+#![forbid(unsafe_code)]
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::indexing_slicing
+    )
+)]
+
+pub mod app;
+pub mod calibration;
+pub mod control;
+pub mod observation;
+pub mod protocol;
+pub mod robot;

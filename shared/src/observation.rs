@@ -1,0 +1,139 @@
+//! Records of the observation log and the calibration result, as fixed by the
+//! interface contract `spec/frames-and-log.md` (version 1).
+//!
+//! These are plain fixed-size types: the host reads and writes them as JSON
+//! Lines (`host-sim`), the firmware fills them from camera feature frames.
+//! Field names match the contract so that `serde` maps them one to one.
+
+use heapless::Vec;
+use serde::{Deserialize, Serialize};
+
+/// The only log version this code reads and writes.
+pub const LOG_VERSION: u32 = 1;
+
+/// Most feature points a part may carry (the contract asks for at least 2).
+pub const MAX_PART_FEATURES: usize = 8;
+
+/// Number of end-effector points seen per frame (paper Section 3.2 uses two).
+pub const EFFECTOR_POINTS: usize = 2;
+
+/// An image point in pixels, `[u, v]` (u right, v down, `(0, 0)` the top-left pixel centre).
+pub type PixelPoint = [f64; 2];
+
+/// A point in metres, `[x, y, z]`, in the frame its name says.
+pub type Point3 = [f64; 3];
+
+/// Pinhole intrinsics with square pixels and no distortion (paper assumption A5).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CameraIntrinsics {
+    pub width: u32,
+    pub height: u32,
+    pub f_px: f64,
+    pub cx: f64,
+    pub cy: f64,
+}
+
+impl CameraIntrinsics {
+    /// Whether `p` lies inside the image by the contract's rule
+    /// (`-0.5 <= u <= width - 0.5`, likewise for v).
+    pub fn contains(&self, p: PixelPoint) -> bool {
+        let [u, v] = p;
+        u >= -0.5
+            && u <= f64::from(self.width) - 0.5
+            && v >= -0.5
+            && v <= f64::from(self.height) - 0.5
+    }
+}
+
+/// Line 1 of a log.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LogHeader {
+    pub version: u32,
+    pub camera: CameraIntrinsics,
+    /// The paper's L: distance from the disc centre to the reference point.
+    pub reference_radius_m: f64,
+    /// How many feature points the part carries (2..=[`MAX_PART_FEATURES`]).
+    pub part_feature_count: usize,
+}
+
+/// Two end-effector points seen in one frame: their images and their base-frame
+/// positions from the robot's joint encoders and kinematics (taken as exact).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EffectorSighting {
+    pub px: [PixelPoint; EFFECTOR_POINTS],
+    pub base_m: [Point3; EFFECTOR_POINTS],
+}
+
+/// One camera frame of the log. `None` means "not detected in this frame".
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ObservationFrame {
+    /// Capture time, non-decreasing within a log.
+    pub t_s: f64,
+    /// Conveyor encoder angle theta latched at capture, unwrapped, 0 at the first frame.
+    pub conveyor_angle_rad: f64,
+    pub center_px: Option<PixelPoint>,
+    pub reference_px: Option<PixelPoint>,
+    /// Every feature of the part in its fixed order, or `None` unless all were detected.
+    pub part_px: Option<Vec<PixelPoint, MAX_PART_FEATURES>>,
+    /// The end effector, when this frame shows it.
+    pub effector: Option<EffectorSighting>,
+}
+
+/// A rigid transform `p_to = rotation * p_from + translation_m`; `rotation` is a list of rows.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RigidTransform {
+    pub rotation: [[f64; 3]; 3],
+    pub translation_m: Point3,
+}
+
+/// The camera's pose found by the virtual rotation (paper Section 2.1).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CameraEstimate {
+    /// Height of the optical centre above the disc plane (`disc_from_camera.translation_m[2]`).
+    pub height_m: f64,
+    pub disc_from_camera: RigidTransform,
+}
+
+/// The part in the rotating frame (paper Eqs 3 to 8).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PartEstimate {
+    /// Each feature point in the rotating frame; z is its height above the disc.
+    pub features_m: Vec<Point3, MAX_PART_FEATURES>,
+    /// 3-D mean of the feature points.
+    pub position_m: Point3,
+    /// Angle of feature 0 -> feature 1 in the rotating XY-plane.
+    pub yaw_rad: f64,
+}
+
+/// `p_base = Rz(yaw) * p_disc + translation` (paper Eqs 13 and 14).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BaseFromDisc {
+    /// Angle of the disc's X axis in the base frame, wrapped to (-pi, pi].
+    pub yaw_rad: f64,
+    /// The disc centre in the base frame.
+    pub translation_m: Point3,
+}
+
+/// How well the estimate explains the observations.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationQuality {
+    /// Frames that contributed at least one detection.
+    pub frames_used: u32,
+    /// Square root of the mean squared 2-D reprojection distance per point.
+    pub rms_reprojection_px: f64,
+    /// Frames whose end-effector sighting was used for `base_from_disc`.
+    #[serde(default)]
+    pub effector_frames_used: u32,
+    /// Detections rejected as gross outliers.
+    #[serde(default)]
+    pub outliers_rejected: u32,
+}
+
+/// What a calibration of a log prints.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationResult {
+    pub camera: CameraEstimate,
+    pub part: PartEstimate,
+    pub base_from_disc: BaseFromDisc,
+    pub quality: CalibrationQuality,
+}
