@@ -1,0 +1,127 @@
+//! The real board: STM32F407VG (e.g. STM32F4-Discovery) on embassy-stm32.
+//!
+//! Peripheral plan (one owner each, taken here so nothing else can use them):
+//! - host link: USART2, TX on PA2, RX on PA3, 115 200 baud, interrupt-driven
+//!   with ring buffers (`BufferedUart`);
+//! - clock: embassy-stm32's time driver on TIM12 (cargo feature
+//!   `time-driver-tim12`), so the timers below stay free;
+//! - joint encoders (quadrature): TIM1, TIM8, TIM2, TIM5, TIM3, TIM4 for
+//!   joints 1 to 6 (TIM2 and TIM5 are 32 bit);
+//! - servo PWM: TIM9 CH1/CH2 (joints 1, 2), TIM10 CH1, TIM11 CH1, TIM13 CH1,
+//!   TIM14 CH1 (joints 3 to 6).
+//!
+//! The encoder and PWM timers are reserved now; the issue that brings up the
+//! motion hardware wires their pins. Until then their traits answer
+//! `BoardError::NotWired` instead of pretending.
+//!
+//! The core runs from the 16 MHz HSI (embassy-stm32's default configuration),
+//! so the firmware does not assume a particular crystal.
+
+use defmt_rtt as _;
+use embassy_stm32::peripherals::{
+    TIM1, TIM10, TIM11, TIM13, TIM14, TIM2, TIM3, TIM4, TIM5, TIM8, TIM9, USART2,
+};
+use embassy_stm32::usart::{BufferedInterruptHandler, BufferedUart, Config as UartConfig};
+use embassy_stm32::{bind_interrupts, Peri};
+use panic_probe as _;
+
+use super::{validate_duties, Board, BoardError, JointCounts, JointDuties, JointEncoders, ServoOutputs};
+
+bind_interrupts!(struct Irqs {
+    USART2 => BufferedInterruptHandler<USART2>;
+});
+
+pub type Serial = BufferedUart<'static>;
+pub type Encoders = QuadratureEncoders;
+pub type Servos = PwmServos;
+
+/// Name reported in `HelloAck`.
+pub const BOARD_NAME: &str = "stm32f407";
+
+const LINK_BAUD: u32 = 115_200;
+const UART_BUFFER_LEN: usize = 512;
+
+/// The six encoder timers, reserved for the quadrature inputs.
+pub struct QuadratureEncoders {
+    _timers: (
+        Peri<'static, TIM1>,
+        Peri<'static, TIM8>,
+        Peri<'static, TIM2>,
+        Peri<'static, TIM5>,
+        Peri<'static, TIM3>,
+        Peri<'static, TIM4>,
+    ),
+}
+
+impl JointEncoders for QuadratureEncoders {
+    fn read_counts(&mut self) -> Result<JointCounts, BoardError> {
+        Err(BoardError::NotWired {
+            device: "joint encoders",
+            peripherals: "TIM1 TIM8 TIM2 TIM5 TIM3 TIM4",
+        })
+    }
+}
+
+/// The PWM timers, reserved for the servo amplifier inputs.
+pub struct PwmServos {
+    _timers: (
+        Peri<'static, TIM9>,
+        Peri<'static, TIM10>,
+        Peri<'static, TIM11>,
+        Peri<'static, TIM13>,
+        Peri<'static, TIM14>,
+    ),
+}
+
+impl ServoOutputs for PwmServos {
+    fn set_duties(&mut self, duties: JointDuties) -> Result<(), BoardError> {
+        validate_duties(&duties)?;
+        Err(BoardError::NotWired {
+            device: "servo PWM",
+            peripherals: "TIM9 TIM10 TIM11 TIM13 TIM14",
+        })
+    }
+
+    fn disable(&mut self) {
+        // Nothing is driven until the PWM pins are wired: already disabled.
+    }
+}
+
+/// Errors bringing the board up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
+pub enum InitError {
+    /// `BufferedUart::new` rejected the link configuration.
+    UartConfig,
+}
+
+/// Brings up clocks, the time driver and USART2. Call once, first in `main`.
+pub fn init() -> Result<Board<Serial, Encoders, Servos>, InitError> {
+    let p = embassy_stm32::init(embassy_stm32::Config::default());
+
+    static mut TX_BUFFER: [u8; UART_BUFFER_LEN] = [0; UART_BUFFER_LEN];
+    static mut RX_BUFFER: [u8; UART_BUFFER_LEN] = [0; UART_BUFFER_LEN];
+    // SAFETY: `init` runs once (embassy_stm32::init above would panic on a
+    // second call, taking the peripherals twice), so these are the only
+    // references ever made to the buffers.
+    let (tx_buffer, rx_buffer) = unsafe {
+        (
+            &mut *core::ptr::addr_of_mut!(TX_BUFFER),
+            &mut *core::ptr::addr_of_mut!(RX_BUFFER),
+        )
+    };
+    let mut config = UartConfig::default();
+    config.baudrate = LINK_BAUD;
+    let serial = BufferedUart::new(p.USART2, p.PA3, p.PA2, tx_buffer, rx_buffer, Irqs, config)
+        .map_err(|_| InitError::UartConfig)?;
+
+    Ok(Board {
+        name: BOARD_NAME,
+        serial,
+        encoders: QuadratureEncoders {
+            _timers: (p.TIM1, p.TIM8, p.TIM2, p.TIM5, p.TIM3, p.TIM4),
+        },
+        servos: PwmServos {
+            _timers: (p.TIM9, p.TIM10, p.TIM11, p.TIM13, p.TIM14),
+        },
+    })
+}
