@@ -1,1 +1,30 @@
 //! Serial protocol v1 between the vision computer / simulator and the controller.
+//!
+//! - Messages ([`Message`]) are postcard-encoded (varints, compact enums).
+//! - Each is followed by a CRC-32 (ISO-HDLC, little-endian) of its payload.
+//! - Payload and CRC are COBS-stuffed and framed by 0x00 on both sides:
+//!   `0x00, COBS(payload ++ crc), 0x00`.
+//! - A payload is at most [`MAX_MESSAGE_LEN`] bytes, so a frame is at most
+//!   [`MAX_FRAME_LEN`] bytes on the wire.
+//! - A session opens with [`Message::Hello`] carrying [`PROTOCOL_VERSION`]; the
+//!   controller answers [`Message::HelloAck`] or an error report.
+//!
+//! The decoder ([`FrameDecoder`]) takes bytes in arbitrary chunks, rejects corrupt
+//! or oversized frames with a typed [`DecodeError`] and resynchronises on the next
+//! delimiter.
+
+mod cobs;
+mod frame;
+mod messages;
+
+pub use frame::{
+    encode_frame, DecodeError, EncodeError, FrameDecoder, CRC_LEN, MAX_BODY_LEN, MAX_FRAME_LEN,
+    MAX_MESSAGE_LEN,
+};
+pub use messages::*;
+
+/// The protocol version this code speaks.
+pub const PROTOCOL_VERSION: u16 = 1;
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,168 @@
+//! The messages of protocol v1. They are postcard-encoded, so the order of
+//! fields and of enum variants is part of the wire format: append, never reorder.
+
+use heapless::{String, Vec};
+use serde::{Deserialize, Serialize};
+
+/// Longest peer / board name carried in the handshake, in bytes.
+pub const MAX_NAME_LEN: usize = 24;
+/// Longest firmware version string, in bytes.
+pub const MAX_VERSION_LEN: usize = 16;
+/// Most labelled image points in one camera feature frame: disc centre,
+/// reference point, up to 8 part features, 2 end-effector points, and room to spare.
+pub const MAX_FEATURE_POINTS: usize = 24;
+/// Joints of the PUMA 560.
+pub const JOINTS: usize = 6;
+
+/// Which physical mark an image point is the image of (the frame contract's
+/// `center_px`, `reference_px`, `part_px[i]`, `effector_px[i]`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum PointLabel {
+    DiscCenter,
+    Reference,
+    /// Part feature `i`, in the part's fixed feature order.
+    Part(u8),
+    /// End-effector point `i` (0 or 1).
+    Effector(u8),
+}
+
+/// One detected image point.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LabeledPoint {
+    pub label: PointLabel,
+    /// Pixel coordinates, u right, v down, `(0, 0)` the top-left pixel centre.
+    pub u_px: f32,
+    pub v_px: f32,
+}
+
+/// What the vision computer found in one camera frame. Points that were not
+/// detected are simply absent. The controller pairs the frame with the encoder
+/// values it latched when it fired `trigger_id`, so vision latency does not bias
+/// the conveyor angle of the observation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CameraFeatureFrame {
+    pub trigger_id: u32,
+    /// Exposure time on the vision computer's clock, microseconds.
+    pub capture_time_us: u64,
+    pub points: Vec<LabeledPoint, MAX_FEATURE_POINTS>,
+}
+
+/// Encoder readings of the plant, sent by a simulated (or remote) plant when the
+/// controller runs against it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SensorSample {
+    pub seq: u32,
+    pub time_us: u64,
+    /// Joint encoder counts (the sign convention and counts per radian are the board's).
+    pub joint_counts: [i32; JOINTS],
+    /// Conveyor encoder counter; it wraps around, the receiver unwraps it.
+    pub conveyor_counts: u32,
+}
+
+/// Gripper jaws.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum GripperCommand {
+    Open,
+    Close,
+}
+
+/// Joint torques for the plant's servo drives.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ActuatorCommand {
+    pub seq: u32,
+    pub joint_torque_nm: [f32; JOINTS],
+    pub gripper: GripperCommand,
+    /// Fire the camera with this trigger id in this period.
+    pub camera_trigger: Option<u32>,
+}
+
+/// The controller's coarse mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ControllerMode {
+    Idle,
+    Running,
+    Faulted,
+}
+
+/// Controller status and link telemetry.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ControllerStatus {
+    pub mode: ControllerMode,
+    /// Control-loop periods executed since boot (proves the executor and time driver run).
+    pub control_ticks: u64,
+    /// Valid frames received since boot.
+    pub frames_received: u32,
+    /// Frames rejected by the decoder since boot (corrupt, oversized, bad CRC).
+    pub frames_rejected: u32,
+    /// Valid frames the controller did not expect (e.g. a controller-only message).
+    pub frames_unexpected: u32,
+    /// Control periods that overran their deadline.
+    pub deadline_misses: u32,
+}
+
+/// The kind of a data frame being acknowledged.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum MessageKind {
+    CameraFeatures,
+    SensorSample,
+    ActuatorCommand,
+}
+
+/// What went wrong, in an error report.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ErrorCode {
+    /// A frame's COBS body was malformed.
+    CorruptFrame,
+    /// A frame's CRC did not match.
+    BadCrc,
+    /// A frame was longer than the protocol's maximum.
+    OversizedFrame,
+    /// A frame passed its CRC but did not hold one valid message.
+    BadMessage,
+    /// The peer speaks another protocol version.
+    UnsupportedVersion,
+    /// A data frame came before a successful handshake.
+    HandshakeRequired,
+    /// A message only the controller sends was sent to it.
+    UnexpectedMessage,
+}
+
+/// Every message of protocol v1.
+///
+/// Camera frames make this enum large (~330 bytes); there is no heap to box them
+/// and messages live on the stack only while being handled.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Message {
+    /// Host -> controller: open a session.
+    Hello {
+        protocol_version: u16,
+        peer_name: String<MAX_NAME_LEN>,
+    },
+    /// Controller -> host: session accepted.
+    HelloAck {
+        protocol_version: u16,
+        board_name: String<MAX_NAME_LEN>,
+        firmware_version: String<MAX_VERSION_LEN>,
+        control_rate_hz: u32,
+        max_frame_len: u16,
+    },
+    CameraFeatures(CameraFeatureFrame),
+    SensorSample(SensorSample),
+    ActuatorCommand(ActuatorCommand),
+    /// Host -> controller: send a `Status`.
+    StatusRequest,
+    Status(ControllerStatus),
+    /// Controller -> host: data frame `token` (its trigger id or sequence number)
+    /// was the `counter`-th data frame of this session.
+    Ack {
+        kind: MessageKind,
+        token: u32,
+        counter: u32,
+    },
+    /// Something was rejected; `detail` is code-specific (e.g. a running count).
+    ErrorReport {
+        code: ErrorCode,
+        detail: u32,
+    },
+}

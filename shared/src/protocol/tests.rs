@@ -1,0 +1,346 @@
+//! Property tests of protocol v1: round trips, garbage, corruption.
+use super::*;
+use heapless::{String, Vec};
+use proptest::collection::vec as pvec;
+use proptest::prelude::*;
+
+fn arb_name<const N: usize>() -> impl Strategy<Value = String<N>> {
+    proptest::string::string_regex(&format!("[ -~é]{{0,{}}}", N / 2))
+        .expect("valid regex")
+        .prop_map(|s| {
+            let mut out = String::new();
+            for c in s.chars() {
+                if out.push(c).is_err() {
+                    break;
+                }
+            }
+            out
+        })
+}
+
+fn arb_label() -> impl Strategy<Value = PointLabel> {
+    prop_oneof![
+        Just(PointLabel::DiscCenter),
+        Just(PointLabel::Reference),
+        any::<u8>().prop_map(PointLabel::Part),
+        any::<u8>().prop_map(PointLabel::Effector),
+    ]
+}
+
+fn arb_point() -> impl Strategy<Value = LabeledPoint> {
+    (arb_label(), any::<f32>(), any::<f32>()).prop_map(|(label, u_px, v_px)| LabeledPoint {
+        label,
+        u_px,
+        v_px,
+    })
+}
+
+fn arb_camera() -> impl Strategy<Value = CameraFeatureFrame> {
+    (
+        any::<u32>(),
+        any::<u64>(),
+        pvec(arb_point(), 0..=MAX_FEATURE_POINTS),
+    )
+        .prop_map(|(trigger_id, t, pts)| CameraFeatureFrame {
+            trigger_id,
+            capture_time_us: t,
+            points: Vec::from_slice(&pts).expect("bounded by strategy"),
+        })
+}
+
+fn arb_status() -> impl Strategy<Value = ControllerStatus> {
+    (
+        prop_oneof![
+            Just(ControllerMode::Idle),
+            Just(ControllerMode::Running),
+            Just(ControllerMode::Faulted)
+        ],
+        any::<u64>(),
+        any::<[u32; 4]>(),
+    )
+        .prop_map(|(mode, control_ticks, c)| ControllerStatus {
+            mode,
+            control_ticks,
+            frames_received: c[0],
+            frames_rejected: c[1],
+            frames_unexpected: c[2],
+            deadline_misses: c[3],
+        })
+}
+
+fn arb_kind() -> impl Strategy<Value = MessageKind> {
+    prop_oneof![
+        Just(MessageKind::CameraFeatures),
+        Just(MessageKind::SensorSample),
+        Just(MessageKind::ActuatorCommand)
+    ]
+}
+
+fn arb_code() -> impl Strategy<Value = ErrorCode> {
+    prop_oneof![
+        Just(ErrorCode::CorruptFrame),
+        Just(ErrorCode::BadCrc),
+        Just(ErrorCode::OversizedFrame),
+        Just(ErrorCode::BadMessage),
+        Just(ErrorCode::UnsupportedVersion),
+        Just(ErrorCode::HandshakeRequired),
+        Just(ErrorCode::UnexpectedMessage),
+    ]
+}
+
+/// Every message variant, with arbitrary field values (NaN and infinities included).
+fn arb_message() -> impl Strategy<Value = Message> {
+    prop_oneof![
+        (any::<u16>(), arb_name::<MAX_NAME_LEN>()).prop_map(|(protocol_version, peer_name)| {
+            Message::Hello {
+                protocol_version,
+                peer_name,
+            }
+        }),
+        (
+            any::<u16>(),
+            arb_name::<MAX_NAME_LEN>(),
+            arb_name::<MAX_VERSION_LEN>(),
+            any::<u32>(),
+            any::<u16>()
+        )
+            .prop_map(|(v, b, f, r, m)| Message::HelloAck {
+                protocol_version: v,
+                board_name: b,
+                firmware_version: f,
+                control_rate_hz: r,
+                max_frame_len: m,
+            }),
+        arb_camera().prop_map(Message::CameraFeatures),
+        (
+            any::<u32>(),
+            any::<u64>(),
+            any::<[i32; JOINTS]>(),
+            any::<u32>()
+        )
+            .prop_map(|(seq, time_us, j, c)| {
+                Message::SensorSample(SensorSample {
+                    seq,
+                    time_us,
+                    joint_counts: j,
+                    conveyor_counts: c,
+                })
+            }),
+        (
+            any::<u32>(),
+            any::<[f32; JOINTS]>(),
+            any::<bool>(),
+            proptest::option::of(any::<u32>())
+        )
+            .prop_map(|(seq, tau, close, trig)| Message::ActuatorCommand(
+                ActuatorCommand {
+                    seq,
+                    joint_torque_nm: tau,
+                    gripper: if close {
+                        GripperCommand::Close
+                    } else {
+                        GripperCommand::Open
+                    },
+                    camera_trigger: trig,
+                }
+            )),
+        Just(Message::StatusRequest),
+        arb_status().prop_map(Message::Status),
+        (arb_kind(), any::<u32>(), any::<u32>()).prop_map(|(kind, token, counter)| Message::Ack {
+            kind,
+            token,
+            counter
+        }),
+        (arb_code(), any::<u32>()).prop_map(|(code, detail)| Message::ErrorReport { code, detail }),
+    ]
+}
+
+/// Bitwise equality, so that NaN payloads compare equal to themselves.
+fn same(a: &Message, b: &Message) -> bool {
+    wire_bytes(a) == wire_bytes(b)
+}
+
+fn wire_bytes(message: &Message) -> std::vec::Vec<u8> {
+    let mut buf = [0u8; 4096];
+    ::postcard::to_slice(message, &mut buf)
+        .expect("fits")
+        .to_vec()
+}
+
+fn encode(message: &Message) -> std::vec::Vec<u8> {
+    let mut buf = [0u8; MAX_FRAME_LEN];
+    let n = encode_frame(message, &mut buf).expect("every message fits a frame");
+    buf[..n].to_vec()
+}
+
+fn decode_chunked(stream: &[u8], chunk: usize) -> (std::vec::Vec<Message>, usize) {
+    let mut decoder = FrameDecoder::new();
+    let mut ok = std::vec::Vec::new();
+    let mut rejected = 0;
+    for piece in stream.chunks(chunk.max(1)) {
+        decoder.push_slice(piece, |r| match r {
+            Ok(m) => ok.push(m),
+            Err(_) => rejected += 1,
+        });
+    }
+    (ok, rejected)
+}
+
+/// `decoded` appears in `sent` in order (each decoded frame is one that was sent, at its place).
+fn is_in_order_subsequence(decoded: &[Message], sent: &[Message]) -> bool {
+    let mut it = sent.iter();
+    decoded.iter().all(|d| it.any(|s| same(s, d)))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(512))]
+
+    #[test]
+    fn every_message_round_trips_in_any_chunking(messages in pvec(arb_message(), 1..12), chunk in 1usize..64) {
+        let stream: std::vec::Vec<u8> = messages.iter().flat_map(encode).collect();
+        let (decoded, rejected) = decode_chunked(&stream, chunk);
+        prop_assert_eq!(rejected, 0);
+        prop_assert_eq!(decoded.len(), messages.len());
+        for (d, m) in decoded.iter().zip(&messages) {
+            prop_assert!(same(d, m), "decoded {:?} != sent {:?}", d, m);
+        }
+    }
+
+    #[test]
+    fn random_bytes_never_panic_and_the_link_recovers(garbage in pvec(any::<u8>(), 0..2048), message in arb_message()) {
+        let mut stream = garbage.clone();
+        stream.extend(encode(&message));
+        let (decoded, _) = decode_chunked(&stream, 7);
+        // Whatever the garbage produced, the good frame after it is decoded, last and intact.
+        let last = decoded.last().expect("the trailing valid frame decodes");
+        prop_assert!(same(last, &message));
+    }
+
+    #[test]
+    fn a_flipped_dropped_or_inserted_byte_never_yields_a_wrong_message(
+        messages in pvec(arb_message(), 1..8),
+        position in any::<prop::sample::Index>(),
+        mutation in 0u8..3,
+        value in any::<u8>(),
+        bit in 0u8..8,
+    ) {
+        let mut stream: std::vec::Vec<u8> = messages.iter().flat_map(encode).collect();
+        let at = position.index(stream.len());
+        match mutation {
+            0 => stream[at] ^= 1 << bit,
+            1 => { stream.remove(at); }
+            _ => stream.insert(at, value),
+        }
+        let (decoded, _) = decode_chunked(&stream, 13);
+        prop_assert!(is_in_order_subsequence(&decoded, &messages), "a wrong or reordered message was accepted");
+        // One byte touches at most two frames (the one it is in and, via a delimiter, a neighbour).
+        prop_assert!(decoded.len() + 2 >= messages.len(), "lost {} of {}", messages.len() - decoded.len(), messages.len());
+    }
+}
+
+#[test]
+fn the_largest_messages_fit_the_documented_frame() {
+    let worst_name: String<MAX_NAME_LEN> = String::try_from("ÿÿÿÿÿÿÿÿÿÿÿÿ").expect("24 bytes");
+    let worst_version: String<MAX_VERSION_LEN> = String::try_from("ÿÿÿÿÿÿÿÿ").expect("16 bytes");
+    let point = LabeledPoint {
+        label: PointLabel::Effector(255),
+        u_px: f32::MAX,
+        v_px: f32::MIN,
+    };
+    let camera = CameraFeatureFrame {
+        trigger_id: u32::MAX,
+        capture_time_us: u64::MAX,
+        points: Vec::from_slice(&[point; MAX_FEATURE_POINTS]).expect("full"),
+    };
+    let worst = [
+        Message::Hello {
+            protocol_version: u16::MAX,
+            peer_name: worst_name.clone(),
+        },
+        Message::HelloAck {
+            protocol_version: u16::MAX,
+            board_name: worst_name,
+            firmware_version: worst_version,
+            control_rate_hz: u32::MAX,
+            max_frame_len: u16::MAX,
+        },
+        Message::CameraFeatures(camera),
+        Message::SensorSample(SensorSample {
+            seq: u32::MAX,
+            time_us: u64::MAX,
+            joint_counts: [i32::MIN; JOINTS],
+            conveyor_counts: u32::MAX,
+        }),
+        Message::ActuatorCommand(ActuatorCommand {
+            seq: u32::MAX,
+            joint_torque_nm: [f32::MAX; JOINTS],
+            gripper: GripperCommand::Close,
+            camera_trigger: Some(u32::MAX),
+        }),
+        Message::Status(ControllerStatus {
+            mode: ControllerMode::Faulted,
+            control_ticks: u64::MAX,
+            frames_received: u32::MAX,
+            frames_rejected: u32::MAX,
+            frames_unexpected: u32::MAX,
+            deadline_misses: u32::MAX,
+        }),
+    ];
+    for m in &worst {
+        let frame = encode(m);
+        assert!(frame.len() <= MAX_FRAME_LEN);
+        let (decoded, rejected) = decode_chunked(&frame, 1);
+        assert_eq!(rejected, 0);
+        assert!(same(&decoded[0], m));
+    }
+}
+
+#[test]
+fn oversized_input_is_rejected_then_the_next_frame_decodes() {
+    let mut stream = vec![0x55u8; 5 * MAX_FRAME_LEN];
+    stream.push(0);
+    let good = Message::StatusRequest;
+    stream.extend(encode(&good));
+    let mut decoder = FrameDecoder::new();
+    let mut results = std::vec::Vec::new();
+    decoder.push_slice(&stream, |r| results.push(r));
+    assert!(
+        matches!(results[0], Err(DecodeError::Oversized { discarded }) if discarded == 5 * MAX_FRAME_LEN)
+    );
+    assert_eq!(results.len(), 2);
+    assert_eq!(results[1], Ok(good));
+    assert_eq!(decoder.pending(), 0);
+}
+
+#[test]
+fn crc_valid_frame_with_trailing_bytes_is_a_bad_message() {
+    // A StatusRequest payload followed by a stray byte, with a correct CRC over both.
+    let mut payload = [0u8; 16];
+    let n = postcard::to_slice(&Message::StatusRequest, &mut payload)
+        .expect("fits")
+        .len();
+    payload[n] = 0x42;
+    let raw_len = n + 1;
+    let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC).checksum(&payload[..raw_len]);
+    let mut raw = payload[..raw_len].to_vec();
+    raw.extend(crc.to_le_bytes());
+    let mut body = [0u8; 64];
+    let body_len = super::cobs::encode(&raw, &mut body).expect("fits");
+    let mut stream = vec![0u8];
+    stream.extend(&body[..body_len]);
+    stream.push(0);
+    let mut decoder = FrameDecoder::new();
+    let mut results = std::vec::Vec::new();
+    decoder.push_slice(&stream, |r| results.push(r));
+    assert_eq!(results, vec![Err(DecodeError::BadMessage)]);
+}
+
+#[test]
+fn a_corrupted_crc_is_reported_with_both_values() {
+    let mut frame = encode(&Message::StatusRequest);
+    let len = frame.len();
+    frame[len - 2] ^= 0x01;
+    let (decoded, rejected) = decode_chunked(&frame, 3);
+    assert!(decoded.is_empty());
+    assert_eq!(rejected, 1);
+}
