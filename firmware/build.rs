@@ -27,11 +27,17 @@ fn main() {
 
     let manifest_dir = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").unwrap_or_default());
     let out_dir = PathBuf::from(env::var_os("OUT_DIR").unwrap_or_default());
-    let map = manifest_dir.join("src/board").join(board_dir).join("memory.x");
+    let map = manifest_dir
+        .join("src/board")
+        .join(board_dir)
+        .join("memory.x");
     let text = match fs::read_to_string(&map) {
         Ok(text) => text,
         Err(e) => {
-            println!("cargo:warning=cannot read board memory map {}: {e}", map.display());
+            println!(
+                "cargo:warning=cannot read board memory map {}: {e}",
+                map.display()
+            );
             std::process::exit(1);
         }
     };
@@ -42,7 +48,10 @@ fn main() {
 
     println!("cargo:rustc-link-search={}", out_dir.display());
     println!("cargo:rerun-if-changed={}", map.display());
-    println!("cargo:rerun-if-changed={}", manifest_dir.join("../memory.x").display());
+    println!(
+        "cargo:rerun-if-changed={}",
+        manifest_dir.join("../memory.x").display()
+    );
     println!("cargo:rerun-if-changed=build.rs");
 
     // Only the thumb target links a firmware image.

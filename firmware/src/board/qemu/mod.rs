@@ -11,7 +11,7 @@ mod uart;
 
 use defmt_semihosting as _;
 
-pub use sim_io::{SimulatedEncoders, SimulatedServos};
+pub use sim_io::{last_servo_duties, SimulatedEncoders, SimulatedServos};
 pub use uart::Uart0;
 
 use super::Board;
@@ -37,6 +37,12 @@ pub fn init() -> Result<Board<Serial, Encoders, Servos>, InitError> {
 /// Bringing up the emulated board cannot fail.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum InitError {}
+
+/// A host-side plant sent its joint encoder counts: on the emulated board they
+/// are what the encoders read.
+pub fn on_host_sensor_sample(joint_counts: &super::JointCounts) {
+    sim_io::feed_encoder_counts(*joint_counts);
+}
 
 /// Without cortex-m-rt's `device` feature every external interrupt lands here;
 /// `irqn` is the NVIC line (negative for system exceptions).

@@ -5,7 +5,9 @@
 
 use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, Ordering};
 
-use crate::board::{validate_duties, BoardError, JointCounts, JointDuties, JointEncoders, ServoOutputs, JOINTS};
+use crate::board::{
+    validate_duties, BoardError, JointCounts, JointDuties, JointEncoders, ServoOutputs, JOINTS,
+};
 
 static ENCODER_COUNTS: [AtomicI32; JOINTS] = [const { AtomicI32::new(0) }; JOINTS];
 /// Duties as `f32` bit patterns.

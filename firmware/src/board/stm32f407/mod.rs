@@ -25,7 +25,9 @@ use embassy_stm32::usart::{BufferedInterruptHandler, BufferedUart, Config as Uar
 use embassy_stm32::{bind_interrupts, Peri};
 use panic_probe as _;
 
-use super::{validate_duties, Board, BoardError, JointCounts, JointDuties, JointEncoders, ServoOutputs};
+use super::{
+    validate_duties, Board, BoardError, JointCounts, JointDuties, JointEncoders, ServoOutputs,
+};
 
 bind_interrupts!(struct Irqs {
     USART2 => BufferedInterruptHandler<USART2>;
@@ -86,6 +88,10 @@ impl ServoOutputs for PwmServos {
         // Nothing is driven until the PWM pins are wired: already disabled.
     }
 }
+
+/// A host-side plant sent joint encoder counts. The real board reads its own
+/// encoders, so a host's counts are only telemetry here and do not overwrite them.
+pub fn on_host_sensor_sample(_joint_counts: &JointCounts) {}
 
 /// Errors bringing the board up.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]

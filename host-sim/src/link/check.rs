@@ -1,0 +1,539 @@
+//! The link check: handshake, a long pipelined exchange of mixed frames in
+//! which every acknowledgement is checked (kind, echoed token and the running
+//! counter, in order), and corruption injection that checks the controller
+//! rejects and counts bad frames and then carries on.
+
+use std::collections::VecDeque;
+use std::fmt;
+use std::time::{Duration, Instant};
+
+use heapless::{String as HString, Vec as HVec};
+use shared::protocol::{
+    ActuatorCommand, CameraFeatureFrame, ControllerStatus, ErrorCode, GripperCommand, LabeledPoint,
+    Message, MessageKind, PointLabel, SensorSample, JOINTS, MAX_FEATURE_POINTS, MAX_FRAME_LEN,
+    PROTOCOL_VERSION,
+};
+
+use super::{ByteLink, FramedLink, LinkError};
+
+/// One `StatusRequest` is mixed in per this many frames of the exchange.
+const STATUS_EVERY: u64 = 64;
+
+/// Why a check failed.
+#[derive(Debug)]
+pub enum CheckError {
+    Link(LinkError),
+    /// The controller's answer was not the one the protocol requires here.
+    Unexpected {
+        /// Which reply of the phase (0-based) went wrong.
+        index: u64,
+        expected: String,
+        got: String,
+    },
+    /// The controller's rejected-frame count did not move as injected.
+    RejectCount {
+        injected: u32,
+        before: u32,
+        after: u32,
+    },
+    /// A configuration the check cannot run with.
+    Config(String),
+}
+
+impl fmt::Display for CheckError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CheckError::Link(e) => write!(f, "{e}"),
+            CheckError::Unexpected {
+                index,
+                expected,
+                got,
+            } => write!(f, "reply #{index}: expected {expected}, got {got}"),
+            CheckError::RejectCount {
+                injected,
+                before,
+                after,
+            } => write!(
+                f,
+                "injected {injected} corrupt frames but frames_rejected went from {before} to {after}"
+            ),
+            CheckError::Config(detail) => write!(f, "invalid check configuration: {detail}"),
+        }
+    }
+}
+
+impl std::error::Error for CheckError {}
+
+impl From<LinkError> for CheckError {
+    fn from(e: LinkError) -> Self {
+        CheckError::Link(e)
+    }
+}
+
+/// What the controller said in its `HelloAck`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Handshake {
+    pub board_name: String,
+    pub firmware_version: String,
+    pub protocol_version: u16,
+    pub control_rate_hz: u32,
+    pub max_frame_len: u16,
+    /// Error reports received before the `HelloAck` (leftovers of a previous session).
+    pub stale_reports: u32,
+}
+
+/// Counts from an exchange.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ExchangeSummary {
+    /// Data frames sent, each acknowledged and checked.
+    pub data_frames: u64,
+    pub camera_frames: u64,
+    pub sensor_samples: u64,
+    pub actuator_commands: u64,
+    pub status_requests: u64,
+    pub elapsed: Duration,
+    pub bytes_sent: u64,
+    pub bytes_received: u64,
+}
+
+impl ExchangeSummary {
+    /// Round trips (all frames) per second.
+    pub fn frames_per_second(&self) -> f64 {
+        let frames = (self.data_frames + self.status_requests) as f64;
+        frames / self.elapsed.as_secs_f64().max(1e-9)
+    }
+}
+
+/// Counts from a corruption run.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CorruptionSummary {
+    /// Garbage runs (random non-zero bytes, then a delimiter) sent.
+    pub garbage_runs: u32,
+    /// Valid frames sent with one bit flipped.
+    pub flipped_frames: u32,
+    /// Valid frames sent after each injection and acknowledged in order.
+    pub recovered_acks: u32,
+    pub rejected_before: u32,
+    pub rejected_after: u32,
+}
+
+/// A reply the controller owes, in order.
+#[derive(Debug, Clone, PartialEq)]
+enum Expected {
+    Ack {
+        kind: MessageKind,
+        token: u32,
+        counter: u32,
+    },
+    Status,
+    /// The report for a rejected frame; `detail` is the running rejected count.
+    Rejection {
+        detail: u32,
+    },
+}
+
+/// A protocol session with the controller.
+pub struct Session<L: ByteLink> {
+    link: FramedLink<L>,
+    /// Data frames acknowledged in this session (the controller's counter).
+    acks: u32,
+    /// Next token for data frames.
+    next_token: u32,
+    reply_timeout: Duration,
+    pub handshake: Handshake,
+}
+
+impl<L: ByteLink> Session<L> {
+    /// Handshakes: a lone delimiter first ends whatever partial frame the
+    /// controller may hold, then `Hello` must be answered by `HelloAck`.
+    pub fn open(link: L, reply_timeout: Duration) -> Result<Self, CheckError> {
+        let mut link = FramedLink::new(link);
+        link.send_raw(&[0])?;
+        link.send(&Message::Hello {
+            protocol_version: PROTOCOL_VERSION,
+            peer_name: bounded_string("host-sim"),
+        })?;
+        let mut stale_reports = 0;
+        loop {
+            match link.recv(reply_timeout, "HelloAck")? {
+                Message::HelloAck {
+                    protocol_version,
+                    board_name,
+                    firmware_version,
+                    control_rate_hz,
+                    max_frame_len,
+                } => {
+                    return Ok(Session {
+                        link,
+                        acks: 0,
+                        next_token: 1,
+                        reply_timeout,
+                        handshake: Handshake {
+                            board_name: board_name.as_str().to_string(),
+                            firmware_version: firmware_version.as_str().to_string(),
+                            protocol_version,
+                            control_rate_hz,
+                            max_frame_len,
+                            stale_reports,
+                        },
+                    })
+                }
+                Message::ErrorReport { .. } if stale_reports < 4 => stale_reports += 1,
+                other => {
+                    return Err(CheckError::Unexpected {
+                        index: 0,
+                        expected: "HelloAck".to_string(),
+                        got: format!("{other:?}"),
+                    })
+                }
+            }
+        }
+    }
+
+    pub fn describe(&self) -> String {
+        self.link.describe()
+    }
+
+    /// The controller's status, asked for and awaited.
+    pub fn status(&mut self) -> Result<ControllerStatus, CheckError> {
+        self.link.send(&Message::StatusRequest)?;
+        match self.link.recv(self.reply_timeout, "Status")? {
+            Message::Status(status) => Ok(status),
+            other => Err(CheckError::Unexpected {
+                index: 0,
+                expected: "Status".to_string(),
+                got: format!("{other:?}"),
+            }),
+        }
+    }
+
+    /// Sends `frames` mixed frames (camera features, sensor samples, actuator
+    /// commands, and a status request every [`STATUS_EVERY`]), keeping at most
+    /// `window` unanswered, and checks every reply in order.
+    pub fn exchange(
+        &mut self,
+        frames: u64,
+        window: usize,
+        seed: u64,
+    ) -> Result<ExchangeSummary, CheckError> {
+        if window == 0 {
+            return Err(CheckError::Config("window must be at least 1".into()));
+        }
+        let mut rng = SplitMix64(seed);
+        let mut pending: VecDeque<Expected> = VecDeque::with_capacity(window);
+        let mut summary = ExchangeSummary::default();
+        let (sent0, received0) = self.link.traffic();
+        let started = Instant::now();
+        let mut sent = 0u64;
+        let mut checked = 0u64;
+        while checked < frames {
+            while sent < frames && pending.len() < window {
+                let (message, expected) = if sent % STATUS_EVERY == STATUS_EVERY - 1 {
+                    summary.status_requests += 1;
+                    (Message::StatusRequest, Expected::Status)
+                } else {
+                    let message = self.data_frame(&mut rng, &mut summary);
+                    self.acks = self.acks.wrapping_add(1);
+                    let (kind, token) = data_kind_token(&message);
+                    (
+                        message,
+                        Expected::Ack {
+                            kind,
+                            token,
+                            counter: self.acks,
+                        },
+                    )
+                };
+                self.link.send(&message)?;
+                pending.push_back(expected);
+                sent += 1;
+            }
+            let expected = pending
+                .pop_front()
+                .ok_or_else(|| CheckError::Config("nothing in flight".into()))?;
+            let got = self.link.recv(self.reply_timeout, &describe(&expected))?;
+            check_reply(checked, &expected, &got)?;
+            checked += 1;
+        }
+        summary.elapsed = started.elapsed();
+        let (sent1, received1) = self.link.traffic();
+        summary.bytes_sent = sent1 - sent0;
+        summary.bytes_received = received1 - received0;
+        Ok(summary)
+    }
+
+    /// Injects `rounds` rounds of corruption: random non-zero garbage closed by
+    /// a delimiter, then a valid frame with one bit flipped (never into a
+    /// delimiter), each followed by a valid frame. Every bad frame must be
+    /// answered by an error report carrying the running rejected count, every
+    /// valid one by its ack, and `Status.frames_rejected` must grow by exactly
+    /// the number injected.
+    pub fn inject_corruption(
+        &mut self,
+        rounds: u32,
+        seed: u64,
+    ) -> Result<CorruptionSummary, CheckError> {
+        let mut rng = SplitMix64(seed);
+        let rejected_before = self.status()?.frames_rejected;
+        let mut rejected = rejected_before;
+        let mut summary = CorruptionSummary {
+            rejected_before,
+            ..CorruptionSummary::default()
+        };
+        let mut scratch = ExchangeSummary::default();
+        let mut index = 0u64;
+        for _ in 0..rounds {
+            // Garbage: 1..=200 random non-zero bytes, then the delimiter.
+            let len = 1 + (rng.next() % 200) as usize;
+            let mut garbage: Vec<u8> = (0..len).map(|_| 1 + (rng.next() % 255) as u8).collect();
+            garbage.push(0);
+            self.link.send_raw(&garbage)?;
+            summary.garbage_runs += 1;
+            rejected += 1;
+            self.expect(index, &Expected::Rejection { detail: rejected })?;
+            index += 1;
+            self.send_checked_data(&mut rng, &mut scratch, &mut index)?;
+            summary.recovered_acks += 1;
+
+            // One flipped bit inside an otherwise valid frame.
+            let message = self.data_frame(&mut rng, &mut scratch);
+            let mut frame = encode(&message)?;
+            flip_one_bit(&mut frame, &mut rng);
+            self.link.send_raw(&frame)?;
+            summary.flipped_frames += 1;
+            rejected += 1;
+            self.expect(index, &Expected::Rejection { detail: rejected })?;
+            index += 1;
+            self.send_checked_data(&mut rng, &mut scratch, &mut index)?;
+            summary.recovered_acks += 1;
+        }
+        summary.rejected_after = self.status()?.frames_rejected;
+        let injected = summary.garbage_runs + summary.flipped_frames;
+        if summary.rejected_after != rejected_before.wrapping_add(injected) {
+            return Err(CheckError::RejectCount {
+                injected,
+                before: rejected_before,
+                after: summary.rejected_after,
+            });
+        }
+        Ok(summary)
+    }
+
+    /// Sends one valid data frame and checks its ack.
+    fn send_checked_data(
+        &mut self,
+        rng: &mut SplitMix64,
+        summary: &mut ExchangeSummary,
+        index: &mut u64,
+    ) -> Result<(), CheckError> {
+        let message = self.data_frame(rng, summary);
+        let (kind, token) = data_kind_token(&message);
+        self.acks = self.acks.wrapping_add(1);
+        self.link.send(&message)?;
+        let expected = Expected::Ack {
+            kind,
+            token,
+            counter: self.acks,
+        };
+        self.expect(*index, &expected)?;
+        *index += 1;
+        Ok(())
+    }
+
+    fn expect(&mut self, index: u64, expected: &Expected) -> Result<(), CheckError> {
+        let got = self.link.recv(self.reply_timeout, &describe(expected))?;
+        check_reply(index, expected, &got)
+    }
+
+    /// A random data frame with the next token.
+    fn data_frame(&mut self, rng: &mut SplitMix64, summary: &mut ExchangeSummary) -> Message {
+        let token = self.next_token;
+        self.next_token = self.next_token.wrapping_add(1);
+        summary.data_frames += 1;
+        match rng.next() % 3 {
+            0 => {
+                summary.camera_frames += 1;
+                Message::CameraFeatures(camera_frame(token, rng))
+            }
+            1 => {
+                summary.sensor_samples += 1;
+                // Encoder counts of a PUMA 560 joint stay within about +-2^17.
+                let mut joint_counts = [0i32; JOINTS];
+                for c in joint_counts.iter_mut() {
+                    *c = (rng.next() % (1 << 18)) as i32 - (1 << 17);
+                }
+                Message::SensorSample(SensorSample {
+                    seq: token,
+                    time_us: rng.next() >> 20,
+                    joint_counts,
+                    conveyor_counts: rng.next() as u32,
+                })
+            }
+            _ => {
+                summary.actuator_commands += 1;
+                let mut joint_torque_nm = [0f32; JOINTS];
+                for t in joint_torque_nm.iter_mut() {
+                    *t = rng.unit() * 100.0 - 50.0;
+                }
+                Message::ActuatorCommand(ActuatorCommand {
+                    seq: token,
+                    joint_torque_nm,
+                    gripper: if rng.next() % 2 == 0 {
+                        GripperCommand::Open
+                    } else {
+                        GripperCommand::Close
+                    },
+                    camera_trigger: (rng.next() % 4 == 0).then_some(token),
+                })
+            }
+        }
+    }
+}
+
+/// A camera frame of 1 to 6 points (disc centre, reference, effector and part
+/// points), or with probability 1/16 a full one of [`MAX_FEATURE_POINTS`] so
+/// frames near the protocol's maximum length are exercised too.
+fn camera_frame(trigger_id: u32, rng: &mut SplitMix64) -> CameraFeatureFrame {
+    let mut points: HVec<LabeledPoint, MAX_FEATURE_POINTS> = HVec::new();
+    let count = if rng.next() % 16 == 0 {
+        MAX_FEATURE_POINTS
+    } else {
+        1 + (rng.next() % 6) as usize
+    };
+    for i in 0..count {
+        let label = match i {
+            0 => PointLabel::DiscCenter,
+            1 => PointLabel::Reference,
+            2 | 3 => PointLabel::Effector((i - 2) as u8),
+            _ => PointLabel::Part((i - 4) as u8),
+        };
+        let point = LabeledPoint {
+            label,
+            u_px: rng.unit() * 640.0,
+            v_px: rng.unit() * 480.0,
+        };
+        if points.push(point).is_err() {
+            break;
+        }
+    }
+    CameraFeatureFrame {
+        trigger_id,
+        capture_time_us: rng.next() >> 16,
+        points,
+    }
+}
+
+fn data_kind_token(message: &Message) -> (MessageKind, u32) {
+    match message {
+        Message::CameraFeatures(f) => (MessageKind::CameraFeatures, f.trigger_id),
+        Message::SensorSample(s) => (MessageKind::SensorSample, s.seq),
+        Message::ActuatorCommand(c) => (MessageKind::ActuatorCommand, c.seq),
+        // `data_frame` makes only the three data kinds.
+        _ => (MessageKind::SensorSample, 0),
+    }
+}
+
+fn check_reply(index: u64, expected: &Expected, got: &Message) -> Result<(), CheckError> {
+    let ok = match (expected, got) {
+        (
+            Expected::Ack {
+                kind,
+                token,
+                counter,
+            },
+            Message::Ack {
+                kind: k,
+                token: t,
+                counter: c,
+            },
+        ) => kind == k && token == t && counter == c,
+        (Expected::Status, Message::Status(_)) => true,
+        (Expected::Rejection { detail }, Message::ErrorReport { code, detail: d }) => {
+            matches!(
+                code,
+                ErrorCode::CorruptFrame
+                    | ErrorCode::BadCrc
+                    | ErrorCode::OversizedFrame
+                    | ErrorCode::BadMessage
+            ) && detail == d
+        }
+        _ => false,
+    };
+    if ok {
+        Ok(())
+    } else {
+        Err(CheckError::Unexpected {
+            index,
+            expected: describe(expected),
+            got: format!("{got:?}"),
+        })
+    }
+}
+
+fn describe(expected: &Expected) -> String {
+    match expected {
+        Expected::Ack {
+            kind,
+            token,
+            counter,
+        } => format!("Ack {{ kind: {kind:?}, token: {token}, counter: {counter} }}"),
+        Expected::Status => "Status".to_string(),
+        Expected::Rejection { detail } => {
+            format!("ErrorReport for a rejected frame with detail {detail}")
+        }
+    }
+}
+
+fn encode(message: &Message) -> Result<Vec<u8>, CheckError> {
+    let mut frame = [0u8; MAX_FRAME_LEN];
+    let len = shared::protocol::encode_frame(message, &mut frame)
+        .map_err(|e| CheckError::Link(LinkError::Encode(e.to_string())))?;
+    Ok(frame.iter().take(len).copied().collect())
+}
+
+/// Flips one bit strictly inside the frame (not its delimiters), choosing a
+/// bit whose flip does not make a zero byte, which would split the frame in two.
+fn flip_one_bit(frame: &mut [u8], rng: &mut SplitMix64) {
+    let inner = frame.len().saturating_sub(2);
+    if inner == 0 {
+        return;
+    }
+    loop {
+        let at = 1 + (rng.next() as usize) % inner;
+        let bit = 1u8 << (rng.next() % 8);
+        if let Some(byte) = frame.get_mut(at) {
+            if *byte ^ bit != 0 {
+                *byte ^= bit;
+                return;
+            }
+        }
+    }
+}
+
+fn bounded_string<const N: usize>(text: &str) -> HString<N> {
+    let mut s = HString::new();
+    for c in text.chars() {
+        if s.push(c).is_err() {
+            break;
+        }
+    }
+    s
+}
+
+/// SplitMix64: a small seeded generator, so every run sends the same traffic.
+struct SplitMix64(u64);
+
+impl SplitMix64 {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in `[0, 1)`.
+    fn unit(&mut self) -> f32 {
+        (self.next() >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
