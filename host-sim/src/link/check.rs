@@ -378,12 +378,12 @@ impl<L: ByteLink> Session<L> {
                 Message::ActuatorCommand(ActuatorCommand {
                     seq: token,
                     joint_torque_nm,
-                    gripper: if rng.next() % 2 == 0 {
+                    gripper: if rng.next() & 1 == 0 {
                         GripperCommand::Open
                     } else {
                         GripperCommand::Close
                     },
-                    camera_trigger: (rng.next() % 4 == 0).then_some(token),
+                    camera_trigger: (rng.next() & 3 == 0).then_some(token),
                 })
             }
         }
@@ -395,7 +395,7 @@ impl<L: ByteLink> Session<L> {
 /// frames near the protocol's maximum length are exercised too.
 fn camera_frame(trigger_id: u32, rng: &mut SplitMix64) -> CameraFeatureFrame {
     let mut points: HVec<LabeledPoint, MAX_FEATURE_POINTS> = HVec::new();
-    let count = if rng.next() % 16 == 0 {
+    let count = if rng.next() & 15 == 0 {
         MAX_FEATURE_POINTS
     } else {
         1 + (rng.next() % 6) as usize

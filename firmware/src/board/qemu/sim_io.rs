@@ -22,6 +22,10 @@ pub fn feed_encoder_counts(counts: JointCounts) {
 }
 
 /// The duties last commanded, or `None` while the servos are disabled.
+#[allow(
+    dead_code,
+    reason = "the servo path is driven by the control issue (Eq 23 torques to duties)"
+)]
 pub fn last_servo_duties() -> Option<JointDuties> {
     if !SERVOS_ENABLED.load(Ordering::Acquire) {
         return None;

@@ -45,14 +45,12 @@ const UART_BUFFER_LEN: usize = 512;
 
 /// The six encoder timers, reserved for the quadrature inputs.
 pub struct QuadratureEncoders {
-    _timers: (
-        Peri<'static, TIM1>,
-        Peri<'static, TIM8>,
-        Peri<'static, TIM2>,
-        Peri<'static, TIM5>,
-        Peri<'static, TIM3>,
-        Peri<'static, TIM4>,
-    ),
+    _joint1: Peri<'static, TIM1>,
+    _joint2: Peri<'static, TIM8>,
+    _joint3: Peri<'static, TIM2>,
+    _joint4: Peri<'static, TIM5>,
+    _joint5: Peri<'static, TIM3>,
+    _joint6: Peri<'static, TIM4>,
 }
 
 impl JointEncoders for QuadratureEncoders {
@@ -66,13 +64,12 @@ impl JointEncoders for QuadratureEncoders {
 
 /// The PWM timers, reserved for the servo amplifier inputs.
 pub struct PwmServos {
-    _timers: (
-        Peri<'static, TIM9>,
-        Peri<'static, TIM10>,
-        Peri<'static, TIM11>,
-        Peri<'static, TIM13>,
-        Peri<'static, TIM14>,
-    ),
+    /// CH1 joint 1, CH2 joint 2.
+    _joints12: Peri<'static, TIM9>,
+    _joint3: Peri<'static, TIM10>,
+    _joint4: Peri<'static, TIM11>,
+    _joint5: Peri<'static, TIM13>,
+    _joint6: Peri<'static, TIM14>,
 }
 
 impl ServoOutputs for PwmServos {
@@ -124,10 +121,19 @@ pub fn init() -> Result<Board<Serial, Encoders, Servos>, InitError> {
         name: BOARD_NAME,
         serial,
         encoders: QuadratureEncoders {
-            _timers: (p.TIM1, p.TIM8, p.TIM2, p.TIM5, p.TIM3, p.TIM4),
+            _joint1: p.TIM1,
+            _joint2: p.TIM8,
+            _joint3: p.TIM2,
+            _joint4: p.TIM5,
+            _joint5: p.TIM3,
+            _joint6: p.TIM4,
         },
         servos: PwmServos {
-            _timers: (p.TIM9, p.TIM10, p.TIM11, p.TIM13, p.TIM14),
+            _joints12: p.TIM9,
+            _joint3: p.TIM10,
+            _joint4: p.TIM11,
+            _joint5: p.TIM13,
+            _joint6: p.TIM14,
         },
     })
 }
