@@ -28,6 +28,7 @@
 pub mod app;
 pub mod calibration;
 pub mod control;
+pub mod fusion;
 pub mod observation;
 pub mod protocol;
 pub mod robot;
