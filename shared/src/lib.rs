@@ -30,5 +30,6 @@ pub mod calibration;
 pub mod control;
 pub mod fusion;
 pub mod observation;
+pub mod planning;
 pub mod protocol;
 pub mod robot;
