@@ -28,6 +28,8 @@
 pub mod app;
 pub mod calibration;
 pub mod control;
+pub mod fusion;
 pub mod observation;
+pub mod planning;
 pub mod protocol;
 pub mod robot;

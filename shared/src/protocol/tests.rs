@@ -344,3 +344,10 @@ fn a_corrupted_crc_is_reported_with_both_values() {
     assert!(decoded.is_empty());
     assert_eq!(rejected, 1);
 }
+
+#[test]
+fn the_documented_frame_limits_hold() {
+    // README and protocol docs state these numbers.
+    assert_eq!(MAX_MESSAGE_LEN, 320);
+    assert_eq!(MAX_FRAME_LEN, 328);
+}

@@ -1,0 +1,3 @@
+//! `host-sim` library: the simulated world behind the `host-sim` binary's subcommands.
+
+pub mod world;

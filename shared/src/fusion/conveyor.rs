@@ -1,0 +1,317 @@
+//! The conveyor's angle, speed and acceleration from its encoder.
+//!
+//! Eq 1 needs theta(t) at control rate, and the interception needs its first two
+//! derivatives; counts are quantised (one count = 2 pi / counts-per-revolution),
+//! so differencing them is noisy. A constant-acceleration Kalman filter (white
+//! jerk) smooths them and reports its uncertainty. Quantisation is modelled as
+//! uniform noise of variance q^2 / 12.
+//!
+//! The state is kept relative to a whole-count origin that moves with the disc,
+//! so the filter stays exact in `f32` however many turns the conveyor makes.
+
+use nalgebra::{convert, Matrix3, RealField, RowVector3, Vector3};
+
+use super::{CounterWidth, EncoderUnwrapper, FusionError};
+
+/// The filter's estimate at its last update.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ConveyorState<T> {
+    /// theta wrapped to (-pi, pi] (for Eq 2's sin and cos; exact in `f32`).
+    pub theta_wrapped: T,
+    /// d theta / dt, rad/s.
+    pub omega: T,
+    /// d^2 theta / dt^2, rad/s^2.
+    pub alpha: T,
+    /// One-sigma uncertainties of theta, omega, alpha.
+    pub sigma_theta: T,
+    pub sigma_omega: T,
+    pub sigma_alpha: T,
+}
+
+/// Kalman filter on the unwrapped conveyor angle.
+#[derive(Debug, Clone)]
+pub struct ConveyorFilter<T: RealField + Copy> {
+    unwrapper: EncoderUnwrapper,
+    counts_per_rev: i64,
+    rad_per_count: T,
+    /// The state's angle is `(origin_counts * rad_per_count) + x[0]`.
+    origin_counts: i64,
+    x: Vector3<T>,
+    p: Matrix3<T>,
+    last_time_us: Option<u64>,
+    jerk_psd: T,
+    measurement_var: T,
+}
+
+impl<T: RealField + Copy> ConveyorFilter<T> {
+    /// `jerk_psd` (rad^2/s^5) sets how quickly the speed may change: about 1 tracks a
+    /// few per cent of speed ripple at 1 Hz; smaller smooths more.
+    pub fn new(counts_per_rev: u32, width: CounterWidth, jerk_psd: T) -> Result<Self, FusionError> {
+        if counts_per_rev == 0 {
+            return Err(FusionError::ZeroCountsPerRevolution);
+        }
+        if !(jerk_psd.is_finite() && jerk_psd > T::zero()) {
+            return Err(FusionError::InvalidParameter {
+                what: "jerk_psd must be finite and positive",
+            });
+        }
+        let rad_per_count: T = convert(core::f64::consts::TAU / f64::from(counts_per_rev));
+        let twelve: T = convert(12.0);
+        Ok(Self {
+            unwrapper: EncoderUnwrapper::new(width),
+            counts_per_rev: i64::from(counts_per_rev),
+            rad_per_count,
+            origin_counts: 0,
+            x: Vector3::zeros(),
+            p: Matrix3::zeros(),
+            last_time_us: None,
+            jerk_psd,
+            measurement_var: rad_per_count * rad_per_count / twelve,
+        })
+    }
+
+    /// Radians per encoder count.
+    pub fn rad_per_count(&self) -> T {
+        self.rad_per_count
+    }
+
+    /// Unwrapped count of the last update (0 at the first reading).
+    pub fn total_counts(&self) -> i64 {
+        self.unwrapper.total()
+    }
+
+    /// The unwrapped theta of an unwrapped count, in `f64` (the log's `conveyor_angle_rad`).
+    pub fn theta_of_counts(&self, counts: i64) -> f64 {
+        counts as f64 * core::f64::consts::TAU / self.counts_per_rev as f64
+    }
+
+    /// The unwrapped count a raw reading latched near the last update stands for.
+    pub fn unwrap_latched(&self, raw: u32) -> Result<i64, FusionError> {
+        self.unwrapper.peek(raw)
+    }
+
+    /// Absorbs one reading taken at `time_us`. On error nothing changes.
+    pub fn update(&mut self, raw: u32, time_us: u64) -> Result<ConveyorState<T>, FusionError> {
+        let counts = self.unwrapper.peek(raw)?;
+        let Some(last) = self.last_time_us else {
+            self.unwrapper.update(raw)?;
+            self.origin_counts = counts;
+            self.x = Vector3::zeros();
+            // Speed and acceleration are unknown at start: a wide prior.
+            let speed_var: T = convert(100.0);
+            self.p =
+                Matrix3::from_diagonal(&Vector3::new(self.measurement_var, speed_var, speed_var));
+            self.last_time_us = Some(time_us);
+            return Ok(self.state());
+        };
+        if time_us <= last {
+            return Err(FusionError::TimeNotIncreasing {
+                dt_s: (time_us as f64 - last as f64) * 1e-6,
+            });
+        }
+        let dt: T = convert((time_us - last) as f64 * 1e-6);
+        let (x, p) = self.predicted(dt);
+        let z: T = convert((counts - self.origin_counts) as f64);
+        let z = z * self.rad_per_count;
+        let innovation = z - x.x;
+        let s = p.m11 + self.measurement_var;
+        let gain = p.column(0) / s;
+        let x = x + gain * innovation;
+        let p = p - gain * RowVector3::new(p.m11, p.m12, p.m13);
+        let p = (p + p.transpose()) * convert::<f64, T>(0.5);
+        if !(x.iter().all(|v| v.is_finite()) && p.iter().all(|v| v.is_finite())) {
+            return Err(FusionError::NonFinite {
+                what: "conveyor filter state",
+            });
+        }
+        self.unwrapper.update(raw)?;
+        self.x = x;
+        self.p = p;
+        self.last_time_us = Some(time_us);
+        self.rebase();
+        Ok(self.state())
+    }
+
+    /// The estimate at the last update.
+    pub fn state(&self) -> ConveyorState<T> {
+        self.state_of(&self.x, &self.p)
+    }
+
+    /// The estimate extrapolated `dt_s` past the last update (e.g. to a control tick
+    /// between encoder samples).
+    pub fn predict(&self, dt_s: T) -> ConveyorState<T> {
+        let (x, p) = self.predicted(dt_s);
+        self.state_of(&x, &p)
+    }
+
+    fn predicted(&self, dt: T) -> (Vector3<T>, Matrix3<T>) {
+        let half: T = convert(0.5);
+        let dt2 = dt * dt;
+        let f = Matrix3::new(
+            T::one(),
+            dt,
+            half * dt2,
+            T::zero(),
+            T::one(),
+            dt,
+            T::zero(),
+            T::zero(),
+            T::one(),
+        );
+        let q = self.jerk_psd;
+        let dt3 = dt2 * dt;
+        let dt4 = dt3 * dt;
+        let dt5 = dt4 * dt;
+        let c = |k: f64| -> T { convert(k) };
+        let process = Matrix3::new(
+            dt5 / c(20.0),
+            dt4 / c(8.0),
+            dt3 / c(6.0),
+            dt4 / c(8.0),
+            dt3 / c(3.0),
+            dt2 / c(2.0),
+            dt3 / c(6.0),
+            dt2 / c(2.0),
+            dt,
+        ) * q;
+        (f * self.x, f * self.p * f.transpose() + process)
+    }
+
+    /// Moves whole counts from the state into the
+    /// integer origin, keeping `x[0]` small so `f32` keeps its resolution.
+    fn rebase(&mut self) {
+        let limit: T = convert(core::f64::consts::PI);
+        if self.x.x.abs() <= limit {
+            return;
+        }
+        let shift_f = (self.x.x / self.rad_per_count).round();
+        let Some(shift) = nalgebra::try_convert::<T, f64>(shift_f) else {
+            return;
+        };
+        let shift = shift as i64;
+        self.origin_counts = self.origin_counts.wrapping_add(shift);
+        self.x.x -= convert::<f64, T>(shift as f64) * self.rad_per_count;
+    }
+
+    fn state_of(&self, x: &Vector3<T>, p: &Matrix3<T>) -> ConveyorState<T> {
+        let origin_mod = self.origin_counts.rem_euclid(self.counts_per_rev);
+        let origin_angle: T = convert(origin_mod as f64);
+        let theta = wrap_pi(origin_angle * self.rad_per_count + x.x);
+        ConveyorState {
+            theta_wrapped: theta,
+            omega: x.y,
+            alpha: x.z,
+            sigma_theta: p.m11.max(T::zero()).sqrt(),
+            sigma_omega: p.m22.max(T::zero()).sqrt(),
+            sigma_alpha: p.m33.max(T::zero()).sqrt(),
+        }
+    }
+}
+
+/// Wraps an angle to (-pi, pi].
+pub fn wrap_pi<T: RealField + Copy>(angle: T) -> T {
+    let wrapped = angle.sin().atan2(angle.cos());
+    if wrapped <= -T::pi() {
+        T::pi()
+    } else {
+        wrapped
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CPR: u32 = 16_384;
+
+    fn quantised(theta: f64, width: CounterWidth, start_raw: u32) -> u32 {
+        let counts = (theta / core::f64::consts::TAU * f64::from(CPR)).floor() as i64;
+        let modulus = i64::from(width.max()) + 1;
+        ((i64::from(start_raw) + counts).rem_euclid(modulus)) as u32
+    }
+
+    fn angle_error(a: f64, b: f64) -> f64 {
+        wrap_pi(a - b).abs()
+    }
+
+    /// Speed ripple, a reversal and a standstill, through a wrapping 16-bit counter.
+    fn run<T: RealField + Copy>(tol_theta: f64, tol_omega: f64) {
+        let mut filter = ConveyorFilter::<T>::new(CPR, CounterWidth::Bits16, convert(1.0)).unwrap();
+        let profile = |t: f64| -> (f64, f64) {
+            // omega(t): 0.5 rad/s with 5 % ripple at 1 Hz for 20 s, then -0.3 rad/s, then 0.
+            let omega = if t < 20.0 {
+                0.5 + 0.025 * (core::f64::consts::TAU * t).sin()
+            } else if t < 30.0 {
+                -0.3
+            } else {
+                0.0
+            };
+            let theta = if t < 20.0 {
+                0.5 * t
+                    + 0.025 / core::f64::consts::TAU * (1.0 - (core::f64::consts::TAU * t).cos())
+            } else if t < 30.0 {
+                10.0 + 0.025 / core::f64::consts::TAU
+                    * (1.0 - (core::f64::consts::TAU * 20.0).cos())
+                    - 0.3 * (t - 20.0)
+            } else {
+                10.0 - 3.0
+            };
+            (theta, omega)
+        };
+        let mut worst_theta: f64 = 0.0;
+        let mut worst_omega: f64 = 0.0;
+        for k in 0..40_000u64 {
+            let t = k as f64 * 1e-3;
+            let (theta, omega) = profile(t);
+            let raw = quantised(theta, CounterWidth::Bits16, 65_000);
+            let s = filter.update(raw, k * 1000).unwrap();
+            let settled = (1.0..19.5).contains(&t) || (21.0..29.5).contains(&t) || t > 31.0;
+            if settled {
+                let th: f64 = nalgebra::try_convert(s.theta_wrapped).unwrap();
+                let om: f64 = nalgebra::try_convert(s.omega).unwrap();
+                worst_theta = worst_theta.max(angle_error(th, theta));
+                worst_omega = worst_omega.max((om - omega).abs());
+            }
+        }
+        let one_count = core::f64::consts::TAU / f64::from(CPR);
+        assert!(
+            worst_theta < tol_theta * one_count,
+            "theta error {} counts",
+            worst_theta / one_count
+        );
+        assert!(worst_omega < tol_omega, "omega error {worst_omega} rad/s");
+        // The unwrapped count ends where the disc is (10 - 3 rad).
+        let expected = (7.0 / core::f64::consts::TAU * f64::from(CPR)).floor();
+        assert!((filter.total_counts() as f64 - (expected - 0.0)).abs() <= 1.0);
+    }
+
+    #[test]
+    fn tracks_ripple_reversal_and_standstill_in_f64() {
+        run::<f64>(2.0, 0.01);
+    }
+
+    #[test]
+    fn tracks_ripple_reversal_and_standstill_in_f32() {
+        run::<f32>(2.0, 0.01);
+    }
+
+    #[test]
+    fn refuses_time_going_backwards_and_keeps_its_state() {
+        let mut filter = ConveyorFilter::<f64>::new(CPR, CounterWidth::Bits32, 1.0).unwrap();
+        filter.update(0, 1_000).unwrap();
+        let before = filter.update(10, 2_000).unwrap();
+        assert!(matches!(
+            filter.update(20, 2_000),
+            Err(FusionError::TimeNotIncreasing { .. })
+        ));
+        assert_eq!(filter.state(), before);
+        assert_eq!(filter.total_counts(), 10);
+    }
+
+    #[test]
+    fn refuses_bad_parameters() {
+        assert!(ConveyorFilter::<f32>::new(0, CounterWidth::Bits16, 1.0).is_err());
+        assert!(ConveyorFilter::<f32>::new(100, CounterWidth::Bits16, f32::NAN).is_err());
+        assert!(ConveyorFilter::<f32>::new(100, CounterWidth::Bits16, -1.0).is_err());
+    }
+}

@@ -1,0 +1,34 @@
+use core::fmt;
+
+/// Why a fusion step refused its input. The estimator's state is unchanged.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FusionError {
+    /// A counter reading does not fit the configured counter width.
+    CounterOutOfRange { raw: u32, bits: u8 },
+    /// Counts per revolution must be positive.
+    ZeroCountsPerRevolution,
+    /// A sample's time did not advance (`dt_s` is the step it implied).
+    TimeNotIncreasing { dt_s: f64 },
+    /// A non-finite number in the named input.
+    NonFinite { what: &'static str },
+    /// A filter parameter is out of its valid range.
+    InvalidParameter { what: &'static str },
+}
+
+impl fmt::Display for FusionError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::CounterOutOfRange { raw, bits } => {
+                write!(f, "encoder reading {raw} does not fit a {bits}-bit counter")
+            }
+            Self::ZeroCountsPerRevolution => {
+                write!(f, "encoder counts per revolution must be positive")
+            }
+            Self::TimeNotIncreasing { dt_s } => {
+                write!(f, "encoder sample time did not increase (step {dt_s} s)")
+            }
+            Self::NonFinite { what } => write!(f, "non-finite value in {what}"),
+            Self::InvalidParameter { what } => write!(f, "invalid parameter: {what}"),
+        }
+    }
+}

@@ -1,0 +1,53 @@
+use core::fmt;
+
+/// Why a plan or an inverse kinematics solve failed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PlanError {
+    /// A non-finite number in the named input.
+    NonFinite { what: &'static str },
+    /// A segment duration must be positive and finite.
+    InvalidDuration,
+    /// A limit or configuration value is out of range.
+    InvalidLimits { what: &'static str },
+    /// The pose could not be reached: the residual after the last iteration.
+    IkDidNotConverge {
+        position_error_m: f64,
+        orientation_error_rad: f64,
+    },
+    /// The solution breaks joint `joint`'s position limit.
+    JointPositionLimit { joint: usize },
+    /// Following the plan would exceed joint `joint`'s speed limit at `time_s`.
+    JointVelocityLimit { joint: usize, time_s: f64 },
+    /// Following the plan would exceed joint `joint`'s torque limit at `time_s`.
+    JointTorqueLimit { joint: usize, time_s: f64 },
+    /// The Jacobian is singular along the plan at `time_s`.
+    Singular { time_s: f64 },
+    /// No duration up to the maximum meets the part within the limits.
+    NoFeasibleIntercept,
+}
+
+impl fmt::Display for PlanError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::NonFinite { what } => write!(f, "non-finite value in {what}"),
+            Self::InvalidDuration => write!(f, "segment duration must be positive and finite"),
+            Self::InvalidLimits { what } => write!(f, "invalid planning limit: {what}"),
+            Self::IkDidNotConverge {
+                position_error_m,
+                orientation_error_rad,
+            } => write!(
+                f,
+                "inverse kinematics did not converge (residual {position_error_m:.2e} m, {orientation_error_rad:.2e} rad): pose out of reach"
+            ),
+            Self::JointPositionLimit { joint } => write!(f, "joint {} position limit", joint + 1),
+            Self::JointVelocityLimit { joint, time_s } => {
+                write!(f, "joint {} speed limit exceeded at t = {time_s:.3} s", joint + 1)
+            }
+            Self::JointTorqueLimit { joint, time_s } => {
+                write!(f, "joint {} torque limit exceeded at t = {time_s:.3} s", joint + 1)
+            }
+            Self::Singular { time_s } => write!(f, "singular Jacobian along the plan at t = {time_s:.3} s"),
+            Self::NoFeasibleIntercept => write!(f, "no feasible intercept within the maximum duration"),
+        }
+    }
+}

@@ -1,0 +1,64 @@
+//! The gripper's orientation over a part: pointing straight down at the disc
+//! (the disc plane is parallel to the base XY-plane, paper assumption A2), turned
+//! about the vertical to the part's yaw.
+
+use nalgebra::{convert, RealField, Rotation3, Vector3};
+
+use crate::robot::JointVector;
+
+/// `base_from_flange` rotation with the flange's z axis pointing down (-Z of the
+/// base) and its x axis at `yaw` in the base XY-plane: `Rz(yaw) Rx(pi)`.
+pub fn gripper_down_rotation<T: RealField + Copy>(yaw: T) -> Rotation3<T> {
+    Rotation3::from_axis_angle(&Vector3::z_axis(), yaw)
+        * Rotation3::from_axis_angle(&Vector3::x_axis(), T::pi())
+}
+
+/// A gripper-down posture of the PUMA 560, the toolbox's nominal `qn` with the
+/// wrist bent the other way: the flange at about (0.60, -0.15, 0.66) m pointing
+/// straight down, elbow up, away from the wrist singularity (q5 = -45 degrees).
+/// The planner seeds its inverse kinematics here.
+pub fn ready_posture<T: RealField + Copy>() -> JointVector<T> {
+    let quarter: T = convert(core::f64::consts::FRAC_PI_4);
+    JointVector::new(T::zero(), quarter, -T::pi(), T::zero(), -quarter, T::zero())
+}
+
+/// The yaw equivalent to `target` (modulo `symmetry`, e.g. pi for a two-finger
+/// gripper, 2 pi for none) that is closest to `current`, so the wrist never turns
+/// further than it must.
+pub fn nearest_equivalent_yaw<T: RealField + Copy>(current: T, target: T, symmetry: T) -> T {
+    if !(symmetry.is_finite() && symmetry > T::zero()) {
+        return target;
+    }
+    let turns = ((current - target) / symmetry).round();
+    target + turns * symmetry
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use core::f64::consts::PI;
+
+    #[test]
+    fn points_down_with_the_requested_yaw() {
+        let r = gripper_down_rotation(0.7_f64);
+        let z = r * Vector3::z();
+        assert!((z - Vector3::new(0.0, 0.0, -1.0)).norm() < 1e-12);
+        let x = r * Vector3::x();
+        assert!((x.y.atan2(x.x) - 0.7).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_ready_posture_points_down() {
+        let robot = crate::robot::Puma560::<f64>::new();
+        let pose = robot.forward_kinematics(&ready_posture());
+        assert!((pose.rotation * Vector3::z() + Vector3::z()).norm() < 1e-12);
+    }
+
+    #[test]
+    fn picks_the_nearest_equivalent_yaw() {
+        assert!((nearest_equivalent_yaw(0.1, 0.1 + 2.0 * PI, 2.0 * PI) - 0.1).abs() < 1e-12);
+        assert!((nearest_equivalent_yaw(0.0, 3.0, PI) - (3.0 - PI)).abs() < 1e-12);
+        assert!((nearest_equivalent_yaw(6.0, -0.2, 2.0 * PI) - (-0.2 + 2.0 * PI)).abs() < 1e-12);
+        assert_eq!(nearest_equivalent_yaw(0.0, 1.0, 0.0), 1.0);
+    }
+}

@@ -1,0 +1,24 @@
+//! Motion planning for the pick (paper Section 4, Fig 3's "sensing system generates
+//! the desired commands Y^d, Y^d-dot, Y^d-ddot"): where the gripper must be, how
+//! fast and how accelerating, for the task-space controller of Eq 23.
+//!
+//! - [`quintic`]: boundary-value quintic segments, continuous in position,
+//!   velocity and acceleration, so the commanded acceleration of Eq 23 never jumps.
+//! - [`ik`]: damped-least-squares inverse kinematics of the PUMA 560 (reachability
+//!   checks and joint-space feasibility of a plan).
+//! - [`intercept`]: the earliest smooth path that meets a moving part within task
+//!   and joint limits.
+//! - [`grasp_pose`]: the gripper's pose above a part (pointing down, yaw following it).
+
+pub mod grasp_pose;
+pub mod ik;
+pub mod intercept;
+pub mod quintic;
+
+mod error;
+
+pub use error::PlanError;
+pub use grasp_pose::{gripper_down_rotation, nearest_equivalent_yaw, ready_posture};
+pub use ik::{solve_ik, IkConfig};
+pub use intercept::{plan_intercept, InterceptLimits, InterceptPlan, TaskState};
+pub use quintic::Quintic;
