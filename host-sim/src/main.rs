@@ -1,7 +1,6 @@
 //! `host-sim`: the simulated workcell and the tools around the controller.
 use clap::{Parser, Subcommand};
-
-mod link;
+use host_sim::link;
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
 #[derive(Parser, Debug)]

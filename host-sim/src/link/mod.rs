@@ -7,8 +7,7 @@
 //! - [`TcpLink`]: the emulated board's UART0, which QEMU serves on a TCP socket;
 //! - [`SerialPortLink`]: a real serial device (the STM32F407's USART2).
 //!
-//! This module depends only on `std`, `shared` and `serialport`, so the
-//! integration tests reuse it as it is.
+//! The integration tests (`tests/tests/emulator_link.rs`) run the same checks.
 
 pub mod check;
 pub mod cli;
