@@ -93,17 +93,27 @@ fn emulated_firmware_exchanges_frames_and_recovers_from_corruption() {
 
     let started = std::time::Instant::now();
     let mut session = exercise(link, "mps2-an386");
-    // The 1 kHz tick task runs on the board's time driver: over the test its
-    // count must have moved by a sizeable fraction of the wall time (QEMU's
-    // virtual clock follows the host clock without icount; only a loose lower
-    // bound, the host may be loaded).
+    // The 1 kHz tick task runs on the board's time driver, whose 32-bit
+    // timebase first wraps 2 s after boot, well inside this test. QEMU's
+    // virtual clock follows the host clock without icount and starts when the
+    // link connects, so the tick count must track the wall time since then: a
+    // lost wrap would stall it, a doubled one would jump it by ~171 s. The
+    // lower bound is loose because the host may be loaded.
     let ticks = session
         .status()
         .unwrap_or_else(|e| panic!("status: {e}"))
         .control_ticks;
     let wall_ms = started.elapsed().as_millis() as u64;
     eprintln!("control ticks at the end: {ticks} over {wall_ms} ms of wall time");
+    assert!(
+        wall_ms > 2_500,
+        "the test ended before the timebase's first wrap"
+    );
     assert!(ticks >= wall_ms / 4, "only {ticks} ticks in {wall_ms} ms");
+    assert!(
+        ticks <= wall_ms + 2_000,
+        "{ticks} ticks in {wall_ms} ms: the timebase jumped"
+    );
 
     board.check_running().unwrap_or_else(|e| panic!("{e}"));
     drop(session);

@@ -7,6 +7,11 @@
 //! own wrap interrupt guarantees that. Timer 2 is a one-shot alarm for the
 //! earliest entry of the timer queue. SysTick is not used: extending its
 //! 24-bit counter lost periods, and QEMU without icount drops its interrupts.
+//!
+//! Timer 1 boots part-way through a period (a free-running CMSDK timer counts
+//! down from the value written to LOAD, then wraps to `u32::MAX`), so the first
+//! wrap comes [`FIRST_WRAP_COUNTS`] after boot: every boot, and so every
+//! emulator test, crosses a wrap instead of only runs longer than 171 s.
 
 use core::cell::RefCell;
 use core::task::Waker;
@@ -40,6 +45,10 @@ const _: () = assert!(
     COUNTS_PER_TICK * embassy_time_driver::TICK_HZ == TIMER_HZ,
     "the embassy tick rate must divide 25 MHz"
 );
+/// Timer counts from boot to timer 1's first wrap (2 s).
+const FIRST_WRAP_COUNTS: u32 = 50_000_000;
+/// The 64-bit count at boot, subtracted so embassy time starts at zero.
+const BOOT_COUNTS: u64 = (u32::MAX - FIRST_WRAP_COUNTS) as u64;
 /// Longest alarm programmed at once; later alarms are re-armed on expiry.
 const MAX_ALARM_COUNTS: u64 = 1 << 31;
 
@@ -56,13 +65,17 @@ pub struct DualTimerDriver {
 }
 
 embassy_time_driver::time_driver_impl!(static DRIVER: DualTimerDriver = DualTimerDriver {
-    state: Mutex::new(RefCell::new(State { wraps: 0, last_elapsed: 0, queue: Queue::new() })),
+    state: Mutex::new(RefCell::new(State {
+        wraps: 0,
+        last_elapsed: BOOT_COUNTS as u32,
+        queue: Queue::new(),
+    })),
 });
 
 /// Starts the timebase and unmasks the dual timer interrupt. Call once at boot.
 pub fn init() {
     TIMER1.at(CONTROL).write(0);
-    TIMER1.at(LOAD).write(u32::MAX);
+    TIMER1.at(LOAD).write(FIRST_WRAP_COUNTS);
     TIMER1.at(INTCLR).write(1);
     // Free-running (not periodic, not one-shot) 32-bit mode, interrupt on wrap.
     TIMER1
@@ -81,7 +94,7 @@ impl State {
             self.wraps += 1;
         }
         self.last_elapsed = elapsed;
-        (self.wraps << 32) | u64::from(elapsed)
+        ((self.wraps << 32) | u64::from(elapsed)).saturating_sub(BOOT_COUNTS)
     }
 
     /// Arms timer 2 for the queue's earliest deadline `at` (ticks), waking
