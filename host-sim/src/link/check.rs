@@ -537,3 +537,114 @@ impl SplitMix64 {
         (self.next() >> 40) as f32 / (1u64 << 24) as f32
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::link::InProcessLink;
+
+    /// Lets the check's own frames through, except that it drops or swaps
+    /// one (each `send` of `FramedLink` carries exactly one frame).
+    struct Tamper {
+        inner: InProcessLink,
+        sends: u64,
+        at: u64,
+        mode: TamperMode,
+        held: Option<Vec<u8>>,
+    }
+
+    enum TamperMode {
+        Drop,
+        SwapWithNext,
+    }
+
+    impl ByteLink for Tamper {
+        fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+            self.sends += 1;
+            if self.sends == self.at {
+                match self.mode {
+                    TamperMode::Drop => return Ok(()),
+                    TamperMode::SwapWithNext => {
+                        self.held = Some(bytes.to_vec());
+                        return Ok(());
+                    }
+                }
+            }
+            self.inner.send(bytes)?;
+            if let Some(held) = self.held.take() {
+                self.inner.send(&held)?;
+            }
+            Ok(())
+        }
+
+        fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, LinkError> {
+            self.inner.recv(buf, timeout)
+        }
+
+        fn describe(&self) -> String {
+            "tampered in-process link".into()
+        }
+
+        fn replies_are_synchronous(&self) -> bool {
+            true
+        }
+    }
+
+    fn tampered(at: u64, mode: TamperMode) -> Session<Tamper> {
+        let link = Tamper {
+            inner: InProcessLink::new(),
+            sends: 0,
+            at,
+            mode,
+            held: None,
+        };
+        Session::open(link, Duration::from_millis(50)).expect("handshake")
+    }
+
+    #[test]
+    fn clean_in_process_exchange_passes() {
+        let mut session =
+            Session::open(InProcessLink::new(), Duration::from_millis(50)).expect("handshake");
+        let summary = session.exchange(2_000, 8, 7).expect("exchange");
+        assert_eq!(summary.data_frames + summary.status_requests, 2_000);
+        let corruption = session.inject_corruption(5, 9).expect("corruption");
+        assert_eq!(corruption.rejected_after, corruption.rejected_before + 10);
+    }
+
+    #[test]
+    fn a_lost_frame_fails_the_exchange() {
+        // Sends 1 and 2 are the delimiter and Hello; frame 500 of the exchange is lost.
+        let mut session = tampered(502, TamperMode::Drop);
+        let err = session
+            .exchange(2_000, 8, 7)
+            .expect_err("a lost frame must be noticed");
+        assert!(
+            matches!(
+                err,
+                CheckError::Unexpected { .. } | CheckError::Link(LinkError::Timeout { .. })
+            ),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn reordered_frames_fail_the_exchange() {
+        let mut session = tampered(302, TamperMode::SwapWithNext);
+        let err = session
+            .exchange(2_000, 8, 7)
+            .expect_err("reordering must be noticed");
+        assert!(matches!(err, CheckError::Unexpected { .. }), "{err}");
+    }
+
+    #[test]
+    fn flipping_one_bit_never_makes_a_delimiter() {
+        let mut rng = SplitMix64(3);
+        for _ in 0..2_000 {
+            let mut frame = vec![0u8, 1, 1, 1, 2, 0x80, 0];
+            flip_one_bit(&mut frame, &mut rng);
+            assert_eq!(frame.first(), Some(&0));
+            assert_eq!(frame.last(), Some(&0));
+            assert!(frame.iter().skip(1).take(5).all(|&b| b != 0));
+        }
+    }
+}

@@ -117,8 +117,10 @@ pub fn on_rx_interrupt() {
 
 /// UART0 TX interrupt (AN386 line 1): the transmitter has room again.
 pub fn on_tx_interrupt() {
-    INTSTATUS.write(INT_TX);
-    CTRL.modify(|c| c & !CTRL_TX_INT);
+    critical_section::with(|_| {
+        INTSTATUS.write(INT_TX);
+        CTRL.modify(|c| c & !CTRL_TX_INT);
+    });
     TX_WAKER.wake();
 }
 
@@ -177,14 +179,18 @@ impl Uart0 {
                 return Poll::Ready(());
             }
             TX_WAKER.register(cx.waker());
-            // Unmask, then check again so a drain in between is not missed.
-            CTRL.modify(|c| c | CTRL_TX_INT);
-            if STATE.read() & STATE_TX_FULL == 0 {
-                CTRL.modify(|c| c & !CTRL_TX_INT);
-                Poll::Ready(())
-            } else {
-                Poll::Pending
-            }
+            // CTRL is shared with the RX path: change it only inside a
+            // critical section so an interrupt's update is not overwritten.
+            critical_section::with(|_| {
+                // Unmask, then check again so a drain in between is not missed.
+                CTRL.modify(|c| c | CTRL_TX_INT);
+                if STATE.read() & STATE_TX_FULL == 0 {
+                    CTRL.modify(|c| c & !CTRL_TX_INT);
+                    Poll::Ready(())
+                } else {
+                    Poll::Pending
+                }
+            })
         })
         .await
     }
