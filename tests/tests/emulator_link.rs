@@ -87,8 +87,15 @@ fn exercise<L: ByteLink>(link: L, expected_board: &str) -> Session<L> {
 fn emulated_firmware_exchanges_frames_and_recovers_from_corruption() {
     let elf = firmware_elf_path();
     let mut board = QemuBoard::start(&elf).unwrap_or_else(|e| panic!("{e}"));
-    let link = TcpLink::connect(&board.uart_addr(), Duration::from_secs(10))
-        .unwrap_or_else(|e| panic!("{e}"));
+    let link = match TcpLink::connect(&board.uart_addr(), Duration::from_secs(10)) {
+        Ok(link) => link,
+        Err(e) => {
+            // Say why QEMU is not listening if it already exited (e.g. the port
+            // was taken after it was picked).
+            board.check_running().unwrap_or_else(|q| panic!("{q}"));
+            panic!("{e}");
+        }
+    };
     board.check_running().unwrap_or_else(|e| panic!("{e}"));
 
     let started = std::time::Instant::now();
