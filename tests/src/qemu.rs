@@ -241,6 +241,16 @@ impl Drop for QemuBoard {
                 self.child.as_ref().map(Child::id)
             );
         }
-        let _ = std::fs::remove_file(&self.stderr_path);
+        if std::thread::panicking() {
+            // Keep the evidence of a failing test.
+            eprintln!(
+                "qemu stderr kept in {}, defmt log (decode with `defmt-print -e ELF < FILE`) in {}",
+                self.stderr_path.display(),
+                self.log_path.display()
+            );
+        } else {
+            let _ = std::fs::remove_file(&self.stderr_path);
+            let _ = std::fs::remove_file(&self.log_path);
+        }
     }
 }

@@ -54,6 +54,8 @@ pub enum BoardError {
         device: &'static str,
         peripherals: &'static str,
     },
+    /// A joint's unwrapped encoder count left the protocol's `i32` range.
+    EncoderOutOfRange { joint: usize },
     /// A servo duty was NaN or infinite.
     NonFiniteDuty { joint: usize },
     /// A servo duty was outside `[-1, 1]`.
@@ -69,6 +71,11 @@ impl fmt::Display for BoardError {
             } => write!(
                 f,
                 "{device}: peripherals {peripherals} are reserved but not wired on this board yet"
+            ),
+            BoardError::EncoderOutOfRange { joint } => write!(
+                f,
+                "encoder count of joint {} is outside the i32 range",
+                joint + 1
             ),
             BoardError::NonFiniteDuty { joint } => {
                 write!(f, "servo duty for joint {} is not finite", joint + 1)

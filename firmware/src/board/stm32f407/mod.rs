@@ -6,28 +6,30 @@
 //! - clock: embassy-stm32's time driver on TIM12 (cargo feature
 //!   `time-driver-tim12`), so the timers below stay free;
 //! - joint encoders (quadrature): TIM1, TIM8, TIM2, TIM5, TIM3, TIM4 for
-//!   joints 1 to 6 (TIM2 and TIM5 are 32 bit);
+//!   joints 1 to 6, pins in [`encoders`];
 //! - servo PWM: TIM9 CH1/CH2 (joints 1, 2), TIM10 CH1, TIM11 CH1, TIM13 CH1,
 //!   TIM14 CH1 (joints 3 to 6).
 //!
-//! The encoder and PWM timers are reserved now; the issue that brings up the
-//! motion hardware wires their pins. Until then their traits answer
-//! `BoardError::NotWired` instead of pretending.
+//! The PWM timers are reserved now; the issue that brings up the amplifiers
+//! (PWM pins, direction outputs, enable) wires them. Until then
+//! `ServoOutputs` answers `BoardError::NotWired` instead of pretending.
 //!
 //! The core runs from the 16 MHz HSI (embassy-stm32's default configuration),
 //! so the firmware does not assume a particular crystal.
 
+mod encoders;
+
 use defmt_rtt as _;
-use embassy_stm32::peripherals::{
-    TIM1, TIM10, TIM11, TIM13, TIM14, TIM2, TIM3, TIM4, TIM5, TIM8, TIM9, USART2,
-};
+use embassy_stm32::peripherals::{TIM10, TIM11, TIM13, TIM14, TIM9, USART2};
+use embassy_stm32::timer::qei::Qei;
 use embassy_stm32::usart::{BufferedInterruptHandler, BufferedUart, Config as UartConfig};
 use embassy_stm32::{bind_interrupts, Peri};
 use panic_probe as _;
 
-use super::{
-    validate_duties, Board, BoardError, JointCounts, JointDuties, JointEncoders, ServoOutputs,
-};
+pub use encoders::QuadratureEncoders;
+use encoders::{qei_config, EncoderPeripherals};
+
+use super::{validate_duties, Board, BoardError, JointCounts, JointDuties, ServoOutputs};
 
 bind_interrupts!(struct Irqs {
     USART2 => BufferedInterruptHandler<USART2>;
@@ -42,25 +44,6 @@ pub const BOARD_NAME: &str = "stm32f407";
 
 const LINK_BAUD: u32 = 115_200;
 const UART_BUFFER_LEN: usize = 512;
-
-/// The six encoder timers, reserved for the quadrature inputs.
-pub struct QuadratureEncoders {
-    _joint1: Peri<'static, TIM1>,
-    _joint2: Peri<'static, TIM8>,
-    _joint3: Peri<'static, TIM2>,
-    _joint4: Peri<'static, TIM5>,
-    _joint5: Peri<'static, TIM3>,
-    _joint6: Peri<'static, TIM4>,
-}
-
-impl JointEncoders for QuadratureEncoders {
-    fn read_counts(&mut self) -> Result<JointCounts, BoardError> {
-        Err(BoardError::NotWired {
-            device: "joint encoders",
-            peripherals: "TIM1 TIM8 TIM2 TIM5 TIM3 TIM4",
-        })
-    }
-}
 
 /// The PWM timers, reserved for the servo amplifier inputs.
 pub struct PwmServos {
@@ -120,14 +103,14 @@ pub fn init() -> Result<Board<Serial, Encoders, Servos>, InitError> {
     Ok(Board {
         name: BOARD_NAME,
         serial,
-        encoders: QuadratureEncoders {
-            _joint1: p.TIM1,
-            _joint2: p.TIM8,
-            _joint3: p.TIM2,
-            _joint4: p.TIM5,
-            _joint5: p.TIM3,
-            _joint6: p.TIM4,
-        },
+        encoders: QuadratureEncoders::new(EncoderPeripherals {
+            joint1: Qei::new(p.TIM1, p.PE9, p.PE11, qei_config()),
+            joint2: Qei::new(p.TIM8, p.PC6, p.PC7, qei_config()),
+            joint3: Qei::new(p.TIM2, p.PA15, p.PB3, qei_config()),
+            joint4: Qei::new(p.TIM5, p.PA0, p.PA1, qei_config()),
+            joint5: Qei::new(p.TIM3, p.PB4, p.PB5, qei_config()),
+            joint6: Qei::new(p.TIM4, p.PB6, p.PB7, qei_config()),
+        }),
         servos: PwmServos {
             _joints12: p.TIM9,
             _joint3: p.TIM10,
