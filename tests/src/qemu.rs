@@ -254,3 +254,62 @@ impl Drop for QemuBoard {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A minimal 32-bit little-endian ARM ELF header with entry point `entry`.
+    fn elf_header(entry: u32) -> Vec<u8> {
+        let mut h = vec![0u8; 52];
+        h[..4].copy_from_slice(b"\x7fELF");
+        h[4] = 1; // 32 bit
+        h[5] = 1; // little endian
+        h[18..20].copy_from_slice(&40u16.to_le_bytes()); // EM_ARM
+        h[24..28].copy_from_slice(&entry.to_le_bytes());
+        h
+    }
+
+    fn check_bytes(name: &str, bytes: &[u8]) -> Result<(), QemuError> {
+        let path = std::env::temp_dir().join(format!("{name}-{}.elf", std::process::id()));
+        std::fs::write(&path, bytes).expect("write temp ELF");
+        let result = check_elf(&path);
+        let _ = std::fs::remove_file(&path);
+        result
+    }
+
+    #[test]
+    fn an386_entry_point_is_accepted() {
+        assert!(check_bytes("an386", &elf_header(0x0000_0401)).is_ok());
+    }
+
+    #[test]
+    fn stm32_image_is_refused_as_the_wrong_board() {
+        let err = check_bytes("stm32", &elf_header(0x0800_0189)).expect_err("wrong board");
+        assert!(matches!(
+            err,
+            QemuError::WrongBoard {
+                entry: 0x0800_0189,
+                ..
+            }
+        ));
+        assert!(err.to_string().contains("--features board-qemu"));
+    }
+
+    #[test]
+    fn non_elf_and_non_arm_files_are_refused() {
+        assert!(matches!(
+            check_bytes(
+                "text",
+                b"not an elf at all, but long enough to hold a header"
+            ),
+            Err(QemuError::NotElf { .. })
+        ));
+        let mut x86 = elf_header(0x401);
+        x86[18] = 3; // EM_386
+        assert!(matches!(
+            check_bytes("x86", &x86),
+            Err(QemuError::NotElf { .. })
+        ));
+    }
+}
