@@ -43,12 +43,16 @@ fn exercise<L: ByteLink>(link: L, expected_board: &str) -> Session<L> {
         assert!(count > 100, "too few {kind} frames in the mix: {count}");
     }
     eprintln!(
-        "{}: {FRAMES} frames in {:.2} s ({:.0} frames/s), {} B sent, {} B received",
+        "{}: {FRAMES} frames in {:.2} s ({:.0} frames/s), {} B sent, {} B received, \
+         round trip p50 {:?} p99 {:?} max {:?}",
         session.describe(),
         summary.elapsed.as_secs_f64(),
         summary.frames_per_second(),
         summary.bytes_sent,
-        summary.bytes_received
+        summary.bytes_received,
+        summary.round_trip_p50,
+        summary.round_trip_p99,
+        summary.round_trip_max
     );
 
     let corruption = session

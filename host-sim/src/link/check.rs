@@ -94,6 +94,11 @@ pub struct ExchangeSummary {
     pub elapsed: Duration,
     pub bytes_sent: u64,
     pub bytes_received: u64,
+    /// Time from sending a frame to receiving its reply (including the wait
+    /// behind the frames in flight before it): median, 99th percentile, max.
+    pub round_trip_p50: Duration,
+    pub round_trip_p99: Duration,
+    pub round_trip_max: Duration,
 }
 
 impl ExchangeSummary {
@@ -220,7 +225,9 @@ impl<L: ByteLink> Session<L> {
             return Err(CheckError::Config("window must be at least 1".into()));
         }
         let mut rng = SplitMix64(seed);
-        let mut pending: VecDeque<Expected> = VecDeque::with_capacity(window);
+        let mut pending: VecDeque<(Expected, Instant)> = VecDeque::with_capacity(window);
+        let mut round_trips: Vec<Duration> =
+            Vec::with_capacity(usize::try_from(frames).unwrap_or(0));
         let mut summary = ExchangeSummary::default();
         let (sent0, received0) = self.link.traffic();
         let started = Instant::now();
@@ -245,17 +252,27 @@ impl<L: ByteLink> Session<L> {
                     )
                 };
                 self.link.send(&message)?;
-                pending.push_back(expected);
+                pending.push_back((expected, Instant::now()));
                 sent += 1;
             }
-            let expected = pending
+            let (expected, sent_at) = pending
                 .pop_front()
                 .ok_or_else(|| CheckError::Config("nothing in flight".into()))?;
             let got = self.link.recv(self.reply_timeout, &describe(&expected))?;
+            round_trips.push(sent_at.elapsed());
             check_reply(checked, &expected, &got)?;
             checked += 1;
         }
         summary.elapsed = started.elapsed();
+        round_trips.sort_unstable();
+        let quantile = |q: f64| -> Duration {
+            let last = round_trips.len().saturating_sub(1);
+            let at = ((last as f64) * q).round() as usize;
+            round_trips.get(at).copied().unwrap_or_default()
+        };
+        summary.round_trip_p50 = quantile(0.5);
+        summary.round_trip_p99 = quantile(0.99);
+        summary.round_trip_max = quantile(1.0);
         let (sent1, received1) = self.link.traffic();
         summary.bytes_sent = sent1 - sent0;
         summary.bytes_received = received1 - received0;

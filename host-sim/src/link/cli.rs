@@ -72,7 +72,8 @@ fn run_on<L: ByteLink>(link: L, args: &LinkCheckArgs, timeout: Duration) -> Resu
     let summary = session.exchange(args.frames, args.window, args.seed)?;
     println!(
         "exchange: {} frames ({} camera, {} sensor, {} actuator, {} status) all acknowledged in order \
-         in {:.3} s ({:.0} frames/s, window {}); {} B sent, {} B received",
+         in {:.3} s ({:.0} frames/s, window {}); {} B sent, {} B received; \
+         round trip p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms",
         summary.data_frames + summary.status_requests,
         summary.camera_frames,
         summary.sensor_samples,
@@ -82,7 +83,10 @@ fn run_on<L: ByteLink>(link: L, args: &LinkCheckArgs, timeout: Duration) -> Resu
         summary.frames_per_second(),
         args.window,
         summary.bytes_sent,
-        summary.bytes_received
+        summary.bytes_received,
+        summary.round_trip_p50.as_secs_f64() * 1e3,
+        summary.round_trip_p99.as_secs_f64() * 1e3,
+        summary.round_trip_max.as_secs_f64() * 1e3
     );
     if args.corrupt > 0 {
         let c = session.inject_corruption(args.corrupt, args.seed ^ 0x5EED)?;
