@@ -12,7 +12,8 @@ use integration_tests::qemu::{firmware_elf_path, QemuBoard};
 const FRAMES: u64 = 10_000;
 /// Frames in flight at most.
 const WINDOW: usize = 16;
-/// Corruption rounds (each injects a garbage run and a flipped-bit frame).
+/// Corruption rounds (each injects a garbage run, a flipped-bit frame and an
+/// oversized run).
 const CORRUPTION_ROUNDS: u32 = 15;
 const SEED: u64 = 0x00C0_FFEE;
 const REPLY_TIMEOUT: Duration = Duration::from_secs(10);
@@ -60,9 +61,10 @@ fn exercise<L: ByteLink>(link: L, expected_board: &str) -> Session<L> {
         .unwrap_or_else(|e| panic!("corruption over {}: {e}", session.describe()));
     assert_eq!(corruption.garbage_runs, CORRUPTION_ROUNDS);
     assert_eq!(corruption.flipped_frames, CORRUPTION_ROUNDS);
+    assert_eq!(corruption.oversized_runs, CORRUPTION_ROUNDS);
     assert_eq!(
         corruption.rejected_after,
-        before.frames_rejected + 2 * CORRUPTION_ROUNDS
+        before.frames_rejected + 3 * CORRUPTION_ROUNDS
     );
 
     // The link carries on normally after the injections.

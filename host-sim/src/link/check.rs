@@ -116,6 +116,8 @@ pub struct CorruptionSummary {
     pub garbage_runs: u32,
     /// Valid frames sent with one bit flipped.
     pub flipped_frames: u32,
+    /// Runs of non-zero bytes longer than any frame, then a delimiter.
+    pub oversized_runs: u32,
     /// Valid frames sent after each injection and acknowledged in order.
     pub recovered_acks: u32,
     pub rejected_before: u32,
@@ -280,8 +282,9 @@ impl<L: ByteLink> Session<L> {
     }
 
     /// Injects `rounds` rounds of corruption: random non-zero garbage closed by
-    /// a delimiter, then a valid frame with one bit flipped (never into a
-    /// delimiter), each followed by a valid frame. Every bad frame must be
+    /// a delimiter, a valid frame with one bit flipped (never into a
+    /// delimiter), and a run longer than any frame, each followed by a valid
+    /// frame. Every bad frame must be
     /// answered by an error report carrying the running rejected count, every
     /// valid one by its ack, and `Status.frames_rejected` must grow by exactly
     /// the number injected.
@@ -323,9 +326,22 @@ impl<L: ByteLink> Session<L> {
             index += 1;
             self.send_checked_data(&mut rng, &mut scratch, &mut index)?;
             summary.recovered_acks += 1;
+
+            // More non-zero bytes than the longest frame: the decoder must
+            // drop them and resynchronise on the delimiter.
+            let len = MAX_FRAME_LEN + 1 + (rng.next() % 200) as usize;
+            let mut run: Vec<u8> = (0..len).map(|_| 1 + (rng.next() % 255) as u8).collect();
+            run.push(0);
+            self.link.send_raw(&run)?;
+            summary.oversized_runs += 1;
+            rejected += 1;
+            self.expect(index, &Expected::Rejection { detail: rejected })?;
+            index += 1;
+            self.send_checked_data(&mut rng, &mut scratch, &mut index)?;
+            summary.recovered_acks += 1;
         }
         summary.rejected_after = self.status()?.frames_rejected;
-        let injected = summary.garbage_runs + summary.flipped_frames;
+        let injected = summary.garbage_runs + summary.flipped_frames + summary.oversized_runs;
         if summary.rejected_after != rejected_before.wrapping_add(injected) {
             return Err(CheckError::RejectCount {
                 injected,
@@ -625,7 +641,7 @@ mod tests {
         let summary = session.exchange(2_000, 8, 7).expect("exchange");
         assert_eq!(summary.data_frames + summary.status_requests, 2_000);
         let corruption = session.inject_corruption(5, 9).expect("corruption");
-        assert_eq!(corruption.rejected_after, corruption.rejected_before + 10);
+        assert_eq!(corruption.rejected_after, corruption.rejected_before + 15);
     }
 
     #[test]

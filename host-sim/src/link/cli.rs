@@ -29,7 +29,7 @@ pub struct LinkCheckArgs {
     /// Frames in flight at most (pipelining window).
     #[arg(long, default_value_t = 8)]
     pub window: usize,
-    /// Corruption rounds to inject after the exchange (2 bad frames each).
+    /// Corruption rounds to inject after the exchange (3 bad frames each).
     #[arg(long, default_value_t = 0)]
     pub corrupt: u32,
     /// Seed of the generated traffic.
@@ -91,9 +91,14 @@ fn run_on<L: ByteLink>(link: L, args: &LinkCheckArgs, timeout: Duration) -> Resu
     if args.corrupt > 0 {
         let c = session.inject_corruption(args.corrupt, args.seed ^ 0x5EED)?;
         println!(
-            "corruption: {} garbage runs and {} flipped-bit frames rejected and reported \
-             (frames_rejected {} -> {}), link recovered ({} acks after injections)",
-            c.garbage_runs, c.flipped_frames, c.rejected_before, c.rejected_after, c.recovered_acks
+            "corruption: {} garbage runs, {} flipped-bit frames and {} oversized runs rejected and \
+             reported (frames_rejected {} -> {}), link recovered ({} acks after injections)",
+            c.garbage_runs,
+            c.flipped_frames,
+            c.oversized_runs,
+            c.rejected_before,
+            c.rejected_after,
+            c.recovered_acks
         );
     }
     let after = session.status()?;
