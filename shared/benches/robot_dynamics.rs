@@ -38,12 +38,7 @@ fn bench_scalar<T: RealField + Copy>(c: &mut Criterion, name: &str) {
         b.iter(|| rigid.mass_matrix(black_box(&q)))
     });
     c.bench_function(&format!("jacobian_and_bias_{name}"), |b| {
-        b.iter(|| {
-            (
-                rigid.jacobian(black_box(&q)),
-                rigid.jacobian_dot_qd(black_box(&q), black_box(&qd)),
-            )
-        })
+        b.iter(|| rigid.jacobian_and_bias(black_box(&q), black_box(&qd)))
     });
     c.bench_function(&format!("forward_kinematics_{name}"), |b| {
         b.iter(|| rigid.forward_kinematics(black_box(&q)))
