@@ -126,7 +126,12 @@ impl<T: RealField + Copy> Composite<T> {
 
     /// Frame {i} about its origin -> frame {i-1} about its origin: rotate by `R_i`, then shift by
     /// `p = R_i p*_i` (the origin of {i} seen from {i-1}).
-    fn to_parent(&self, link: &DhLink<T>, trig: &SinCos<T>, origin_in_child: &Vector3<T>) -> Self {
+    fn expressed_in_parent(
+        &self,
+        link: &DhLink<T>,
+        trig: &SinCos<T>,
+        origin_in_child: &Vector3<T>,
+    ) -> Self {
         let first_moment = link.to_parent(trig, &self.first_moment);
         let shift = link.to_parent(trig, origin_in_child);
         let inertia =
@@ -162,7 +167,7 @@ impl<T: RealField + Copy> Puma560<T> {
                 None => own,
             };
             // Links joint..6 seen from the frame whose z axis through its origin is this joint.
-            let in_parent = composite.to_parent(link, joint_trig, origin);
+            let in_parent = composite.expressed_in_parent(link, joint_trig, origin);
             outboard = Some(in_parent);
             // Unit acceleration about z: momentum rate (z x h, I_O z).
             let h = in_parent.first_moment;
