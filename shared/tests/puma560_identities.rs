@@ -466,6 +466,18 @@ fn forward_dynamics_reports_bad_input_and_degenerate_models() {
         friction: false,
     });
     assert!(driven.forward_dynamics(&ok, &ok, &ok).is_ok());
+    bad[3] = f64::NAN;
+    assert_eq!(
+        model.try_inverse_dynamics(&ok, &bad, &ok),
+        Err(RobotError::NonFiniteInput {
+            quantity: "qd",
+            joint: 4
+        })
+    );
+    assert_eq!(
+        model.try_inverse_dynamics(&ok, &ok, &ok),
+        Ok(model.gravity_torque(&ok))
+    );
     // Errors render a message that says what and where.
     let message = format!(
         "{}",
