@@ -97,7 +97,7 @@ fn f32_dynamics_terms_stay_within_the_derived_bound_on_random_states() {
 /// measured errors use about 1e-4 of it, printed below); what it guarantees is that the f32
 /// solve never loses more than ~0.3% of `||qdd||` plus the rounding of r, i.e. the f32 plant
 /// model is well conditioned with armature on. (Without armature M's smallest eigenvalue drops
-/// to ~1e-5 kg m^2 and this guarantee no longer holds in f32: use f64 for the rigid plant.)
+/// to ~4e-5 kg m^2 and this guarantee no longer holds in f32: use f64 for the rigid plant.)
 #[test]
 fn f32_forward_dynamics_stays_within_the_perturbation_bound() {
     let model64 = plant();
