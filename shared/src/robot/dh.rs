@@ -44,9 +44,9 @@ impl Twist {
 /// One row of the standard DH table (all PUMA offsets are 0, so there is no offset field).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DhLink<T> {
-    /// Link length `a_i` along `x_i` [m].
+    /// Link length `a_i` along `x_i` (m).
     pub a: T,
-    /// Link offset `d_i` along `z_{i-1}` [m].
+    /// Link offset `d_i` along `z_{i-1}` (m).
     pub d: T,
     /// Link twist `alpha_i` about `x_i`.
     pub twist: Twist,
