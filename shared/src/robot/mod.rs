@@ -41,6 +41,7 @@ use nalgebra::Vector6;
 pub type JointVector<T> = Vector6<T>;
 
 pub use dh::{DhLink, JointTrig, SinCos, Twist};
+pub use drive::SIMULATOR_COULOMB_WIDTH;
 pub use error::RobotError;
 pub use kinematics::FrameChain;
 pub use model::{
