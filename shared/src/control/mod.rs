@@ -1,1 +1,24 @@
 //! Task-space computed-torque control of the PUMA 560 (paper Eq 23).
+//!
+//! One concept per module:
+//! - [`gains`]: PD(+I) gains from natural frequency, damping ratio and integrator pole.
+//! - [`orientation`]: orientation error as the log map of `R_d R^T`.
+//! - [`dls`]: damped least-squares Jacobian solve, bounded at singularities.
+//! - [`model`]: the model terms the law uses ([`TaskSpaceModel`]).
+//! - [`computed_torque`]: the control step itself, with anti-windup integral
+//!   action, torque saturation and the gravity-hold fallback.
+//! - [`error`]: typed errors.
+
+pub mod computed_torque;
+pub mod dls;
+pub mod error;
+pub mod gains;
+pub mod model;
+pub mod orientation;
+
+pub use computed_torque::{ControlOutput, ControllerConfig, TaskReference, TaskSpaceController};
+pub use dls::{solve_damped, DampedSolution, DampingConfig};
+pub use error::{ControlError, ControlInput, ControlStage};
+pub use gains::{AxisGains, TaskGains};
+pub use model::{Joints, TaskSpaceModel};
+pub use orientation::orientation_error;
