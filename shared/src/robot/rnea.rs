@@ -1,0 +1,131 @@
+//! Inverse dynamics by the recursive Newton-Euler algorithm (Luh, Walker and Paul), in link
+//! frames: the right-hand side of Eq 16, `tau = D(q) qdd + C(q, qd) + G(q)`, without forming D.
+//!
+//! Everything is expressed in the moving DH frame {i} so that the inertias are constants and each
+//! frame change is one planar rotation plus a signed permutation (see [`super::dh`]). Moments are
+//! taken about frame origins with the link's first moment `h = m c`, which keeps the equations
+//! linear in the stored [`super::model::BodyInertia`] (payload and mass scaling are sums and
+//! products of it).
+
+use nalgebra::{RealField, Vector3};
+
+use super::dh::{DhLink, JointTrig, SinCos};
+use super::model::Puma560;
+use super::JointVector;
+
+/// Motion of link frame {i}, in frame-{i} coordinates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LinkMotion<T> {
+    /// Angular velocity.
+    pub angular_velocity: Vector3<T>,
+    /// Angular acceleration.
+    pub angular_acceleration: Vector3<T>,
+    /// Classical linear acceleration of the frame origin (including the fictitious base
+    /// acceleration `-g` when gravity is folded in).
+    pub linear_acceleration: Vector3<T>,
+}
+
+impl<T: RealField + Copy> Puma560<T> {
+    /// Outward recursion: velocities and accelerations of frames {1}..{6} from the base, which
+    /// moves with linear acceleration `base_acceleration` (`-g` to fold gravity in).
+    ///
+    /// `w_i = R_i^T (w_{i-1} + z qd_i)`,
+    /// `wd_i = R_i^T (wd_{i-1} + z qdd_i + w_{i-1} x z qd_i)`,
+    /// `vd_i = wd_i x p*_i + w_i x (w_i x p*_i) + R_i^T vd_{i-1}`.
+    pub fn forward_motion(
+        &self,
+        trig: &JointTrig<T>,
+        qd: &JointVector<T>,
+        qdd: &JointVector<T>,
+        base_acceleration: &Vector3<T>,
+    ) -> [LinkMotion<T>; 6] {
+        let qd_joints: [T; 6] = (*qd).into();
+        let qdd_joints: [T; 6] = (*qdd).into();
+        let mut angular_velocity = Vector3::zeros();
+        let mut angular_acceleration = Vector3::zeros();
+        let mut linear_acceleration = *base_acceleration;
+        let mut motion = [LinkMotion {
+            angular_velocity,
+            angular_acceleration,
+            linear_acceleration,
+        }; 6];
+        let per_link = motion
+            .iter_mut()
+            .zip(self.dh.iter())
+            .zip(self.origins_in_child.iter())
+            .zip(trig.joints.iter())
+            .zip(qd_joints.iter().zip(qdd_joints.iter()));
+        for ((((out, link), origin), joint_trig), (&rate, &accel)) in per_link {
+            let w_parent = angular_velocity;
+            let w_joint = Vector3::new(w_parent.x, w_parent.y, w_parent.z + rate);
+            // w_{i-1} x (z qd_i) = qd_i (w_y, -w_x, 0)
+            let wd_joint = Vector3::new(
+                angular_acceleration.x + w_parent.y * rate,
+                angular_acceleration.y - w_parent.x * rate,
+                angular_acceleration.z + accel,
+            );
+            angular_velocity = link.to_child(joint_trig, &w_joint);
+            angular_acceleration = link.to_child(joint_trig, &wd_joint);
+            linear_acceleration = angular_acceleration.cross(origin)
+                + angular_velocity.cross(&angular_velocity.cross(origin))
+                + link.to_child(joint_trig, &linear_acceleration);
+            *out = LinkMotion {
+                angular_velocity,
+                angular_acceleration,
+                linear_acceleration,
+            };
+        }
+        motion
+    }
+
+    /// Rigid-body RNEA with a chosen base acceleration; no armature, no friction.
+    ///
+    /// Per link, about its frame origin: `F_i = m vd_i + wd_i x h + w_i x (w_i x h)` and
+    /// `N_i = I_O wd_i + w_i x (I_O w_i) + h x vd_i`. Inward: `f_i = R_{i+1} f_{i+1} + F_i`,
+    /// `n_i = R_{i+1} n_{i+1} + N_i + p*_i x f_i` (moment about the joint-i axis point), and
+    /// `tau_i = n_i . z_{i-1}`.
+    pub fn rigid_inverse_dynamics_with(
+        &self,
+        trig: &JointTrig<T>,
+        qd: &JointVector<T>,
+        qdd: &JointVector<T>,
+        base_acceleration: &Vector3<T>,
+    ) -> JointVector<T> {
+        let motion = self.forward_motion(trig, qd, qdd, base_acceleration);
+        let mut tau = [T::zero(); 6];
+        let mut force = Vector3::zeros();
+        let mut moment = Vector3::zeros();
+        let per_link = tau
+            .iter_mut()
+            .zip(motion.iter())
+            .zip(self.bodies.iter())
+            .zip(self.dh.iter().zip(self.origins_in_child.iter()))
+            .zip(trig.joints.iter())
+            .rev();
+        // The wrench of link i+1 is rotated into frame {i} with link i+1's transform.
+        let mut outboard_link: Option<(&DhLink<T>, &SinCos<T>)> = None;
+        for ((((tau_out, link_motion), body), (link, origin)), joint_trig) in per_link {
+            let LinkMotion {
+                angular_velocity: w,
+                angular_acceleration: wd,
+                linear_acceleration: vd,
+            } = *link_motion;
+            let h = body.first_moment;
+            let inertia_force = vd * body.mass + wd.cross(&h) + w.cross(&w.cross(&h));
+            let inertia_moment =
+                body.inertia_origin * wd + w.cross(&(body.inertia_origin * w)) + h.cross(&vd);
+            let (force_from_outboard, moment_from_outboard) = match outboard_link {
+                Some((outer_link, outer_trig)) => (
+                    outer_link.to_parent(outer_trig, &force),
+                    outer_link.to_parent(outer_trig, &moment),
+                ),
+                None => (Vector3::zeros(), Vector3::zeros()),
+            };
+            force = force_from_outboard + inertia_force;
+            moment = moment_from_outboard + inertia_moment + origin.cross(&force);
+            *tau_out = link.along_joint_axis(&moment);
+            outboard_link = Some((link, joint_trig));
+        }
+        JointVector::from(tau)
+    }
+}
