@@ -13,7 +13,7 @@ use nalgebra::{Isometry3, RealField, Vector3, Vector6};
 use super::dls::{solve_damped, DampingConfig};
 use super::error::{ControlError, ControlInput, ControlStage};
 use super::gains::{AxisGains, TaskGains};
-use super::model::{Joints, TaskSpaceModel};
+use super::model::{Joints, TaskKinematics, TaskSpaceModel};
 use super::orientation::orientation_error;
 
 /// Desired motion of the flange (frame {6}), all in the base frame.
@@ -159,12 +159,15 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
         check_inputs(q, qd, reference, dt)?;
         self.last_finite_q = Some(*q);
 
-        let base_from_flange = model.base_from_flange(q);
+        let configuration = model.configuration(q);
+        let TaskKinematics {
+            base_from_flange,
+            jacobian,
+            jacobian_dot_qd: jdot_qd,
+        } = model.task_kinematics(&configuration, qd);
         if !pose_is_finite(&base_from_flange) {
             return Err(ControlError::NonFiniteResult(ControlStage::ForwardKinematics));
         }
-        let jacobian = model.jacobian(q);
-        let jdot_qd = model.jacobian_dot_qd(q, qd);
         if !jacobian.iter().all(|x| x.is_finite()) || !all_finite(&jdot_qd) {
             return Err(ControlError::NonFiniteResult(ControlStage::Jacobian));
         }
@@ -203,7 +206,7 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
         if !all_finite(&solution.x) {
             return Err(ControlError::NonFiniteResult(ControlStage::JointAccelerationSolve));
         }
-        let tau_unsaturated = model.inverse_dynamics(q, qd, &solution.x);
+        let tau_unsaturated = model.inverse_dynamics(&configuration, qd, &solution.x);
         if !all_finite(&tau_unsaturated) {
             return Err(ControlError::NonFiniteResult(ControlStage::InverseDynamics));
         }

@@ -47,6 +47,8 @@ pub enum ControlError {
     SolveFailed,
     /// A gain or limit of the configuration was negative, NaN or infinite.
     InvalidConfiguration(&'static str),
+    /// Numerical inverse kinematics did not reach the target pose (unreachable or bad seed).
+    InverseKinematicsDidNotConverge,
 }
 
 impl fmt::Display for ControlInput {
@@ -91,6 +93,9 @@ impl fmt::Display for ControlError {
             }
             ControlError::InvalidConfiguration(what) => {
                 write!(f, "control: invalid configuration: {what}")
+            }
+            ControlError::InverseKinematicsDidNotConverge => {
+                f.write_str("control: inverse kinematics did not converge to the target pose")
             }
         }
     }

@@ -1,0 +1,73 @@
+//! [`TaskSpaceModel`] for the PUMA 560 model of `crate::robot`.
+//!
+//! Uses the model's split API (`JointTrig`, `frame_chain_with`,
+//! `forward_motion`, `inverse_dynamics_with`) so that one control step
+//! evaluates the six `sin`/`cos` pairs and the frame chain once.
+
+use nalgebra::{RealField, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
+
+use super::model::{Joints, TaskKinematics, TaskSpaceModel};
+use crate::robot::{JointTrig, Puma560};
+
+impl<T: RealField + Copy> TaskSpaceModel<T> for Puma560<T> {
+    type Configuration = JointTrig<T>;
+
+    fn configuration(&self, q: &Joints<T>) -> JointTrig<T> {
+        JointTrig::new(q)
+    }
+
+    /// Same quantities as `forward_kinematics`, `jacobian` and
+    /// `jacobian_dot_qd`, sharing one frame chain.
+    fn task_kinematics(&self, trig: &JointTrig<T>, qd: &Joints<T>) -> TaskKinematics<T> {
+        let chain = self.frame_chain_with(trig);
+        let rotation_matrix = chain.base_from_flange_rotation();
+        let jacobian = self.jacobian_from_chain(&chain);
+        // Velocity/acceleration half of the Newton-Euler recursion at qdd = 0 and
+        // without gravity gives the flange's classical acceleration in frame {6}.
+        let [.., flange] = self.forward_motion(trig, qd, &Joints::zeros(), &Vector3::zeros());
+        let linear = rotation_matrix * flange.linear_acceleration;
+        let angular = rotation_matrix * flange.angular_acceleration;
+        let rotation = Rotation3::from_matrix_unchecked(rotation_matrix);
+        TaskKinematics {
+            base_from_flange: nalgebra::Isometry3::from_parts(
+                Translation3::from(chain.flange_origin()),
+                UnitQuaternion::from_rotation_matrix(&rotation),
+            ),
+            jacobian,
+            jacobian_dot_qd: Vector6::new(
+                linear.x, linear.y, linear.z, angular.x, angular.y, angular.z,
+            ),
+        }
+    }
+
+    fn inverse_dynamics(&self, trig: &JointTrig<T>, qd: &Joints<T>, qdd: &Joints<T>) -> Joints<T> {
+        self.inverse_dynamics_with(trig, qd, qdd)
+    }
+
+    fn gravity_torque(&self, q: &Joints<T>) -> Joints<T> {
+        Puma560::gravity_torque(self, q)
+    }
+
+    fn torque_limits(&self) -> Joints<T> {
+        self.joint_limits().torque_max
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The shared-chain evaluation equals the model's separate public calls.
+    #[test]
+    fn task_kinematics_matches_the_model_api() {
+        let model = Puma560::<f64>::new();
+        let q = Joints::new(0.3, 0.7, -2.1, 0.4, 0.9, -1.2);
+        let qd = Joints::new(-0.5, 0.8, 1.1, -1.4, 0.6, 2.0);
+        let k = model.task_kinematics(&model.configuration(&q), &qd);
+        let pose = model.forward_kinematics(&q);
+        assert!((k.base_from_flange.translation.vector - pose.translation.vector).norm() < 1e-14);
+        assert!(k.base_from_flange.rotation.angle_to(&pose.rotation) < 1e-12);
+        assert!((k.jacobian - model.jacobian(&q)).norm() < 1e-14);
+        assert!((k.jacobian_dot_qd - model.jacobian_dot_qd(&q, &qd)).norm() < 1e-12);
+    }
+}
