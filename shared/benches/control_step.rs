@@ -8,18 +8,14 @@ use std::hint::black_box;
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::{RealField, UnitQuaternion, Vector3};
 use shared::control::{
-    solve_pose, AxisGains, CircleTrajectory, ControllerConfig, DampingConfig, Joints, TaskGains,
-    TaskReference, TaskSpaceController, TaskSpaceModel, solve_damped,
+    solve_damped, solve_pose, AxisGains, CircleTrajectory, ControllerConfig, DampingConfig, Joints,
+    TaskGains, TaskReference, TaskSpaceController, TaskSpaceModel,
 };
 use shared::robot::{DriveOptions, Puma560};
 
 fn config<T: RealField + Copy>() -> ControllerConfig<T> {
-    let gains = AxisGains::from_poles(
-        nalgebra::convert(40.0),
-        T::one(),
-        nalgebra::convert(10.0),
-    )
-    .expect("valid gains");
+    let gains = AxisGains::from_poles(nalgebra::convert(40.0), T::one(), nalgebra::convert(10.0))
+        .expect("valid gains");
     ControllerConfig {
         gains: TaskGains {
             position: gains,

@@ -13,7 +13,9 @@ use control_support::{track_circle, SplitMix};
 fn main() {
     let duration = 4.0 * core::f64::consts::PI; // two turns
     let settle = 1.5;
-    println!("circle r = 0.3 m, 1 rad/s, 2 turns, 1 kHz control, RK4 plant; errors after {settle} s");
+    println!(
+        "circle r = 0.3 m, 1 rad/s, 2 turns, 1 kHz control, RK4 plant; errors after {settle} s"
+    );
     println!("seed  friction_known  | PD max [mm]  PD rms [mm] | PID max [mm] PID rms [mm] | max|tau| [N m]");
     let mut rng = SplitMix(0xC1_4C1E);
     let (mut worst_pd, mut worst_pid) = (0.0_f64, 0.0_f64);
@@ -33,5 +35,9 @@ fn main() {
             if pid.fallback_steps + pid.saturated_steps > 0 { "  (saturated/fallback steps!)" } else { "" }
         );
     }
-    println!("worst max error: PD {:.3} mm, PID {:.3} mm (goal < 2 mm)", worst_pd * 1e3, worst_pid * 1e3);
+    println!(
+        "worst max error: PD {:.3} mm, PID {:.3} mm (goal < 2 mm)",
+        worst_pd * 1e3,
+        worst_pid * 1e3
+    );
 }

@@ -77,7 +77,9 @@ fn measure(trig_of: impl Fn(&Joints<f32>) -> JointTrig<f32>) -> Errors {
             .fk_rotation
             .max((rotation - fk.fixed_view::<3, 3>(0, 0)).amax());
         let jacobian: Matrix6<f64> = rows(&case["jacob0"]);
-        e.jacobian = e.jacobian.max((kin.jacobian.cast::<f64>() - jacobian).amax());
+        e.jacobian = e
+            .jacobian
+            .max((kin.jacobian.cast::<f64>() - jacobian).amax());
         e.jdot_qd = e
             .jdot_qd
             .max((kin.jacobian_dot_qd.cast::<f64>() - vec6(&case["jdot_qd"])).amax());
@@ -89,10 +91,15 @@ fn measure(trig_of: impl Fn(&Joints<f32>) -> JointTrig<f32>) -> Errors {
 
 #[test]
 fn micromath_trig_breaks_the_kinematic_budget_libm_does_not() {
-    let exact = measure(|q| JointTrig::new(q));
+    let exact = measure(JointTrig::new);
     let approx = measure(micromath_trig);
+    let model = Puma560::<f32>::new();
+    let ours = measure(|q| model.configuration(q));
     println!("f32 with libm sin/cos:      {exact:?}");
+    println!("f32 with control::trig:     {ours:?}");
     println!("f32 with micromath sin/cos: {approx:?}");
+    // the controller's own full-precision trig is as good as libm's
+    assert!(ours.fk_position_m < 1e-5 && ours.jacobian < 1e-5 && ours.tau_nm < 1e-3);
     // exact f32 evaluation: errors at f32 rounding level
     assert!(exact.fk_position_m < 1e-5 && exact.jacobian < 1e-5 && exact.tau_nm < 1e-3);
     // micromath: millimetre-level pose error, far above the 2 mm tracking goal's budget

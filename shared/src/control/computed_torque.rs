@@ -166,7 +166,9 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
             jacobian_dot_qd: jdot_qd,
         } = model.task_kinematics(&configuration, qd);
         if !pose_is_finite(&base_from_flange) {
-            return Err(ControlError::NonFiniteResult(ControlStage::ForwardKinematics));
+            return Err(ControlError::NonFiniteResult(
+                ControlStage::ForwardKinematics,
+            ));
         }
         if !jacobian.iter().all(|x| x.is_finite()) || !all_finite(&jdot_qd) {
             return Err(ControlError::NonFiniteResult(ControlStage::Jacobian));
@@ -174,8 +176,10 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
 
         let position_error =
             reference.base_from_flange.translation.vector - base_from_flange.translation.vector;
-        let orientation_error =
-            orientation_error(&reference.base_from_flange.rotation, &base_from_flange.rotation);
+        let orientation_error = orientation_error(
+            &reference.base_from_flange.rotation,
+            &base_from_flange.rotation,
+        );
         let error = Vector6::new(
             position_error.x,
             position_error.y,
@@ -204,7 +208,9 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
             &self.config.damping,
         )?;
         if !all_finite(&solution.x) {
-            return Err(ControlError::NonFiniteResult(ControlStage::JointAccelerationSolve));
+            return Err(ControlError::NonFiniteResult(
+                ControlStage::JointAccelerationSolve,
+            ));
         }
         let tau_unsaturated = model.inverse_dynamics(&configuration, qd, &solution.x);
         if !all_finite(&tau_unsaturated) {
@@ -241,7 +247,11 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
         );
         Vector6::from_fn(|row, _| {
             let limit = if row < 3 { lp } else { lo };
-            let previous = self.error_integral.get(row).copied().unwrap_or_else(T::zero);
+            let previous = self
+                .error_integral
+                .get(row)
+                .copied()
+                .unwrap_or_else(T::zero);
             let increment = error.get(row).copied().unwrap_or_else(T::zero) * dt;
             (previous + increment).max(-limit).min(limit)
         })
@@ -312,7 +322,11 @@ fn check_inputs<T: RealField + Copy>(
 fn saturate<T: RealField + Copy>(tau: &Joints<T>, limits: &Joints<T>) -> (Joints<T>, bool) {
     let mut saturated = false;
     let clipped = tau.zip_map(limits, |t, limit| {
-        let limit = if limit.is_finite() { limit.abs() } else { T::zero() };
+        let limit = if limit.is_finite() {
+            limit.abs()
+        } else {
+            T::zero()
+        };
         let c = t.max(-limit).min(limit);
         if c != t {
             saturated = true;

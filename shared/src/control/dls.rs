@@ -72,7 +72,11 @@ pub fn solve_damped<T: RealField + Copy>(
     let jjt = jacobian * jacobian.transpose();
     let undamped = Cholesky::new(jjt);
     let manipulability = match &undamped {
-        Some(chol) => chol.l_dirty().diagonal().iter().fold(T::one(), |p, &d| p * d),
+        Some(chol) => chol
+            .l_dirty()
+            .diagonal()
+            .iter()
+            .fold(T::one(), |p, &d| p * d),
         None => T::zero(),
     };
     let damping_squared = config.damping_squared(manipulability);

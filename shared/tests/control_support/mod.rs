@@ -80,7 +80,10 @@ pub fn controller_config(integral: bool) -> ControllerConfig<f32> {
     controller_config_with(integral, 0.01)
 }
 
-pub fn controller_config_with(integral: bool, manipulability_threshold: f32) -> ControllerConfig<f32> {
+pub fn controller_config_with(
+    integral: bool,
+    manipulability_threshold: f32,
+) -> ControllerConfig<f32> {
     let pole = if integral { 10.0 } else { 0.0 };
     let gains = AxisGains::from_poles(40.0_f32, 1.0, pole).expect("valid gains");
     ControllerConfig {
@@ -106,7 +109,10 @@ pub fn cast_reference(reference: &TaskReference<f64>) -> TaskReference<f32> {
 }
 
 /// Plant state on the reference at t = 0: IK for the pose, `J^-1` for the twist.
-pub fn start_on(plant: &Puma560<f64>, reference: &TaskReference<f64>) -> (Joints<f64>, Joints<f64>) {
+pub fn start_on(
+    plant: &Puma560<f64>,
+    reference: &TaskReference<f64>,
+) -> (Joints<f64>, Joints<f64>) {
     let q = solve_pose(
         plant,
         &reference.base_from_flange,
@@ -159,6 +165,12 @@ pub struct Sample {
     pub output: ControlOutput<f32>,
 }
 
+/// Control period and run length [s].
+pub struct Timing {
+    pub dt: f64,
+    pub duration: f64,
+}
+
 /// Runs the controller at `1/dt` against the plant on `reference(t)` for `duration` s.
 pub fn run_closed_loop(
     plant: &Puma560<f64>,
@@ -166,10 +178,10 @@ pub fn run_closed_loop(
     controller: &mut TaskSpaceController<f32>,
     reference: impl Fn(f64) -> TaskReference<f64>,
     start: (Joints<f64>, Joints<f64>),
-    dt: f64,
-    duration: f64,
+    timing: Timing,
     mut record: impl FnMut(&Sample),
 ) {
+    let Timing { dt, duration } = timing;
     let (mut q, mut qd) = start;
     let steps = (duration / dt).round() as usize;
     for k in 0..steps {
@@ -227,8 +239,7 @@ pub fn track_circle(
         &mut controller,
         |t| circle.reference(t),
         start,
-        1e-3,
-        duration,
+        Timing { dt: 1e-3, duration },
         |s| {
             stats.saturated_steps += usize::from(s.output.saturated);
             stats.fallback_steps += usize::from(s.output.fallback.is_some());
