@@ -1,8 +1,10 @@
 //! Outer-loop gains of the task-space law, chosen by natural frequency and damping.
 //!
-//! Eq 23 turns the arm into a double integrator per task coordinate,
-//! `e_ddot = -Kd e_dot - Kp e` (plus `- Ki int e` with integral action), so the
-//! gains are chosen by pole placement rather than tuned by hand: the error
+//! The linearising feedback turns the arm into six decoupled double integrators
+//! (Eqs 21-22), and Eq 23's `F_i = [f_i2 f_i1]` (here `Kp`, `Kd`; the paper's
+//! `Kv`) makes each error obey `e_ddot = -Kd e_dot - Kp e` (plus `- Ki int e`
+//! with integral action), so the gains are chosen by pole placement rather
+//! than tuned by hand: the error
 //! polynomial is `(s^2 + 2 zeta wn s + wn^2)(s + p)` with `p` the integrator pole
 //! (`p = 0` gives the paper's pure PD loop).
 
