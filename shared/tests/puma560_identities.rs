@@ -118,6 +118,9 @@ fn jacobian_dot_qd_matches_central_difference() {
         let backward = model.jacobian(&(q - qd * step));
         let finite_difference = (forward - backward) / (2.0 * step) * qd;
         let analytic = model.jacobian_dot_qd(&q, &qd);
+        let (jacobian, bias) = model.jacobian_and_bias(&q, &qd);
+        assert_eq!(jacobian, model.jacobian(&q));
+        assert_eq!(bias, analytic);
         // Central difference truncation ~ step^2 |J'''| ~ 1e-10, round-off ~ eps / step ~ 1e-11.
         let error = (finite_difference - analytic).abs().max();
         assert!(error < 1e-7, "Jdot qd off by {error:e} at q = {q}");

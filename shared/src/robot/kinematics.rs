@@ -113,15 +113,39 @@ impl<T: RealField + Copy> Puma560<T> {
     /// zero joint accelerations and no gravity, in link frames, then rotated to the base.
     pub fn jacobian_dot_qd(&self, q: &JointVector<T>, qd: &JointVector<T>) -> Vector6<T> {
         let trig = JointTrig::new(q);
+        self.jacobian_dot_qd_with(&trig, &self.frame_chain_with(&trig), qd)
+    }
+
+    /// [`Self::jacobian_dot_qd`] from a precomputed joint trig and frame chain.
+    pub fn jacobian_dot_qd_with(
+        &self,
+        trig: &JointTrig<T>,
+        chain: &FrameChain<T>,
+        qd: &JointVector<T>,
+    ) -> Vector6<T> {
         let zero = JointVector::zeros();
-        let motion = self.forward_motion(&trig, qd, &zero, &Vector3::zeros());
+        let motion = self.forward_motion(trig, qd, &zero, &Vector3::zeros());
         let [.., flange] = motion;
-        let chain = self.frame_chain_with(&trig);
         let rotation = chain.base_from_flange_rotation();
         let linear = rotation * flange.linear_acceleration;
         let angular = rotation * flange.angular_acceleration;
         Vector6::new(
             linear.x, linear.y, linear.z, angular.x, angular.y, angular.z,
+        )
+    }
+
+    /// The Jacobian and its bias `Jdot qd` together, sharing one evaluation of the joint trig and
+    /// of the frame chain: what the task-space controller (Eq 19-20) needs every tick.
+    pub fn jacobian_and_bias(
+        &self,
+        q: &JointVector<T>,
+        qd: &JointVector<T>,
+    ) -> (Matrix6<T>, Vector6<T>) {
+        let trig = JointTrig::new(q);
+        let chain = self.frame_chain_with(&trig);
+        (
+            self.jacobian_from_chain(&chain),
+            self.jacobian_dot_qd_with(&trig, &chain, qd),
         )
     }
 }
