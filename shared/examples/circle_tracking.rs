@@ -16,7 +16,7 @@ fn main() {
     println!(
         "circle r = 0.3 m, 1 rad/s, 2 turns, 1 kHz control, RK4 plant; errors after {settle} s"
     );
-    println!("seed  friction_known  | PD max [mm]  PD rms [mm] | PID max [mm] PID rms [mm] | max|tau| [N m]");
+    println!("seed  friction_known  | PD max [mm]  PD rms [mm] | PID max [mm] PID rms [mm] PID max rot [mrad] | max|tau| [N m]");
     let mut rng = SplitMix(0xC1_4C1E);
     let (mut worst_pd, mut worst_pid) = (0.0_f64, 0.0_f64);
     for seed in 1..=8_u64 {
@@ -26,11 +26,12 @@ fn main() {
         worst_pd = worst_pd.max(pd.max_error_m);
         worst_pid = worst_pid.max(pid.max_error_m);
         println!(
-            "{seed:>4}  x{friction_scale:<13.3} | {:>11.3}  {:>11.3} | {:>12.3} {:>12.3} | {:>8.1}{}",
+            "{seed:>4}  x{friction_scale:<13.3} | {:>11.3}  {:>11.3} | {:>12.3} {:>12.3} {:>18.3} | {:>8.1}{}",
             pd.max_error_m * 1e3,
             pd.rms_error_m * 1e3,
             pid.max_error_m * 1e3,
             pid.rms_error_m * 1e3,
+            pid.max_orientation_error_rad * 1e3,
             pid.max_abs_tau,
             if pid.fallback_steps + pid.saturated_steps > 0 { "  (saturated/fallback steps!)" } else { "" }
         );

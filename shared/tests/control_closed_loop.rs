@@ -15,7 +15,8 @@ use shared::robot::Puma560;
 const DURATION_S: f64 = 4.0 * core::f64::consts::PI;
 const SETTLE_S: f64 = 1.5;
 
-/// Goal is 2 mm; a correct implementation measures about 0.8 mm max, 0.2 mm RMS.
+/// Goal is 2 mm; a correct implementation measures about 0.8 mm max, 0.2 mm RMS,
+/// and at most about 2.5 mrad of orientation error.
 #[test]
 fn circle_tracking_with_integral_action_stays_below_goal() {
     let mut rng = SplitMix(0x00C0_1720);
@@ -34,6 +35,11 @@ fn circle_tracking_with_integral_action_stays_below_goal() {
             stats.rms_error_m < 0.5e-3,
             "rms error {} m",
             stats.rms_error_m
+        );
+        assert!(
+            stats.max_orientation_error_rad < 5e-3,
+            "orientation error {} rad",
+            stats.max_orientation_error_rad
         );
     }
 }

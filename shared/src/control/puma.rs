@@ -1,10 +1,10 @@
 //! [`TaskSpaceModel`] for the PUMA 560 model of `crate::robot`.
 //!
 //! Uses the model's split API (`JointTrig`, `frame_chain_with`,
-//! `forward_motion`, `inverse_dynamics_with`) so that one control step
+//! `jacobian_dot_qd_with`, `inverse_dynamics_with`) so that one control step
 //! evaluates the six `sin`/`cos` pairs and the frame chain once.
 
-use nalgebra::{RealField, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Isometry3, RealField, Rotation3, Translation3, UnitQuaternion};
 
 use super::model::{Joints, TaskKinematics, TaskSpaceModel};
 use super::trig::sin_cos;
@@ -28,23 +28,14 @@ impl<T: RealField + Copy> TaskSpaceModel<T> for Puma560<T> {
     /// `jacobian_dot_qd`, sharing one frame chain.
     fn task_kinematics(&self, trig: &JointTrig<T>, qd: &Joints<T>) -> TaskKinematics<T> {
         let chain = self.frame_chain_with(trig);
-        let rotation_matrix = chain.base_from_flange_rotation();
-        let jacobian = self.jacobian_from_chain(&chain);
-        // Velocity/acceleration half of the Newton-Euler recursion at qdd = 0 and
-        // without gravity gives the flange's classical acceleration in frame {6}.
-        let [.., flange] = self.forward_motion(trig, qd, &Joints::zeros(), &Vector3::zeros());
-        let linear = rotation_matrix * flange.linear_acceleration;
-        let angular = rotation_matrix * flange.angular_acceleration;
-        let rotation = Rotation3::from_matrix_unchecked(rotation_matrix);
+        let rotation = Rotation3::from_matrix_unchecked(chain.base_from_flange_rotation());
         TaskKinematics {
-            base_from_flange: nalgebra::Isometry3::from_parts(
+            base_from_flange: Isometry3::from_parts(
                 Translation3::from(chain.flange_origin()),
                 UnitQuaternion::from_rotation_matrix(&rotation),
             ),
-            jacobian,
-            jacobian_dot_qd: Vector6::new(
-                linear.x, linear.y, linear.z, angular.x, angular.y, angular.z,
-            ),
+            jacobian: self.jacobian_from_chain(&chain),
+            jacobian_dot_qd: self.jacobian_dot_qd_with(trig, &chain, qd),
         }
     }
 

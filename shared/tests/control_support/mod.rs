@@ -5,8 +5,8 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 use shared::control::{
-    solve_pose, AxisGains, CircleTrajectory, ControlOutput, ControllerConfig, DampingConfig,
-    Joints, TaskGains, TaskReference, TaskSpaceController,
+    orientation_error, solve_pose, AxisGains, CircleTrajectory, ControlOutput, ControllerConfig,
+    DampingConfig, Joints, TaskGains, TaskReference, TaskSpaceController,
 };
 use shared::robot::{DriveOptions, Puma560};
 
@@ -162,6 +162,8 @@ pub struct Sample {
     pub q: Joints<f64>,
     /// True flange position error |p_d - p| of the plant [m] (f64 kinematics).
     pub position_error: f64,
+    /// True flange orientation error |log(R_d R^T)| of the plant [rad].
+    pub orientation_error: f64,
     pub output: ControlOutput<f32>,
 }
 
@@ -194,11 +196,18 @@ pub fn run_closed_loop(
             &cast_reference(&desired),
             dt as f32,
         );
-        let flange = plant.forward_kinematics(&q).translation.vector;
+        let flange = plant.forward_kinematics(&q);
         record(&Sample {
             t,
             q,
-            position_error: (desired.base_from_flange.translation.vector - flange).norm(),
+            position_error: (desired.base_from_flange.translation.vector
+                - flange.translation.vector)
+                .norm(),
+            orientation_error: orientation_error(
+                &desired.base_from_flange.rotation,
+                &flange.rotation,
+            )
+            .norm(),
             output,
         });
         (q, qd) = rk4_step(plant, &q, &qd, &output.tau.cast::<f64>(), dt);
@@ -210,6 +219,7 @@ pub fn run_closed_loop(
 pub struct TrackingStats {
     pub max_error_m: f64,
     pub rms_error_m: f64,
+    pub max_orientation_error_rad: f64,
     pub samples: usize,
     pub saturated_steps: usize,
     pub fallback_steps: usize,
@@ -246,6 +256,8 @@ pub fn track_circle(
             stats.max_abs_tau = stats.max_abs_tau.max(s.output.tau.amax() as f64);
             if s.t >= settle {
                 stats.max_error_m = stats.max_error_m.max(s.position_error);
+                stats.max_orientation_error_rad =
+                    stats.max_orientation_error_rad.max(s.orientation_error);
                 sum_sq += s.position_error * s.position_error;
                 stats.samples += 1;
             }
