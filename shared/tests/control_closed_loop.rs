@@ -319,3 +319,73 @@ fn f32_step_agrees_with_f64_step() {
     assert!(compared >= 200);
     assert!(worst < 1e-3);
 }
+
+/// PUMA 560 singular configurations (this DH table): `det J ~ a2 (a3 s3 + d4 c3)(a2 c2 + a3 c23 - d4 s23) s5`
+/// vanishes at the wrist (`s5 = 0`), elbow (arm stretched, `a3 s3 + d4 c3 = 0`) and
+/// shoulder (wrist centre in the plane through `z0` normal to the arm) singularities. At each, a step asked to move
+/// 5 cm and 0.1 rad in every task direction stays finite and bounded.
+#[test]
+fn wrist_elbow_and_shoulder_singularities_stay_bounded() {
+    let (a2, a3, d4): (f64, f64, f64) = (0.4318, 0.0203, 0.4318);
+    let elbow_q3 = (-d4).atan2(a3); // a3 s3 + d4 c3 = 0: forearm along the upper arm
+                                                         // shoulder: a2 c2 + a3 c23 - d4 s23 = 0 for q3 = -2.0, by bisection in q2
+    let q3 = -2.0_f64;
+    let shoulder = |q2: f64| a2 * q2.cos() + a3 * (q2 + q3).cos() - d4 * (q2 + q3).sin();
+    let (mut lo, mut hi) = (0.0_f64, 3.0_f64);
+    assert!(shoulder(lo) * shoulder(hi) < 0.0);
+    for _ in 0..80 {
+        let mid = 0.5 * (lo + hi);
+        if shoulder(lo) * shoulder(mid) <= 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    let cases = [
+        ("wrist", Joints::new(0.2, 0.3, -2.3, 0.7, 0.0, -0.4)),
+        ("elbow", Joints::new(0.2, 0.3, elbow_q3, 0.7, 0.8, -0.4)),
+        ("shoulder", Joints::new(0.2, lo, q3, 0.7, 0.8, -0.4)),
+    ];
+    let plant = Puma560::<f64>::new().with_drive(BOTH_DRIVE_TERMS);
+    let model = controller_model(1.0);
+    let limits = plant.joint_limits().torque_max;
+    for (name, q) in cases {
+        let det = plant.jacobian(&q).determinant();
+        assert!(det.abs() < 1e-9, "{name}: det J = {det}");
+        let pose = plant.forward_kinematics(&q);
+        let mut worst_qdd = 0.0_f32;
+        for direction in 0..6 {
+            let mut offset = Vector6::zeros();
+            offset[direction] = if direction < 3 { 0.05 } else { 0.1 };
+            let reference = TaskReference {
+                base_from_flange: nalgebra::Isometry3::from_parts(
+                    (pose.translation.vector + offset.fixed_rows::<3>(0)).into(),
+                    nalgebra::UnitQuaternion::from_scaled_axis(
+                        offset.fixed_rows::<3>(3).into_owned(),
+                    ) * pose.rotation,
+                ),
+                twist: Vector6::zeros(),
+                acceleration: Vector6::zeros(),
+            };
+            let mut controller = TaskSpaceController::new(controller_config(false)).unwrap();
+            let out = controller.step(
+                &model,
+                &q.cast(),
+                &Joints::zeros(),
+                &cast_reference(&reference),
+                1e-3,
+            );
+            assert!(out.fallback.is_none(), "{name}: {:?}", out.fallback);
+            assert!(out.damping_squared > 0.0, "{name}: damping must be active");
+            assert!(out.qdd.iter().all(|v| v.is_finite()));
+            for (tau, limit) in out.tau.iter().zip(limits.iter()) {
+                assert!(tau.is_finite() && f64::from(tau.abs()) <= limit + 1e-3);
+            }
+            // DLS bound |qdd| <= |a| / (2 lambda), with |a| = Kp |offset| here
+            let bound = 1600.0 * 0.1 / (2.0 * out.damping_squared.sqrt());
+            assert!(out.qdd.norm() <= bound * 1.01, "{name}: {}", out.qdd.norm());
+            worst_qdd = worst_qdd.max(out.qdd.amax());
+        }
+        println!("{name} singularity (det J = {det:.1e}): max |qdd| {worst_qdd:.1} rad/s^2");
+    }
+}
