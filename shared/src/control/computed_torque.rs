@@ -66,11 +66,11 @@ pub struct ControlOutput<T> {
     pub tau: Joints<T>,
     /// Joint accelerations commanded to the RNEA pass (zero in a hold).
     pub qdd: Joints<T>,
-    /// `p_d - p` in the base frame [m].
+    /// `p_d - p` in the base frame [m] (zero in a hold: not evaluated).
     pub position_error: Vector3<T>,
-    /// `log(R_d R^T)` in the base frame [rad].
+    /// `log(R_d R^T)` in the base frame [rad] (zero in a hold).
     pub orientation_error: Vector3<T>,
-    /// `|det J|` at this step.
+    /// `|det J|` at this step (zero in a hold).
     pub manipulability: T,
     /// Damping `lambda^2` used in the Jacobian solve (0 away from singularities).
     pub damping_squared: T,
