@@ -328,7 +328,7 @@ fn f32_step_agrees_with_f64_step() {
 fn wrist_elbow_and_shoulder_singularities_stay_bounded() {
     let (a2, a3, d4): (f64, f64, f64) = (0.4318, 0.0203, 0.4318);
     let elbow_q3 = (-d4).atan2(a3); // a3 s3 + d4 c3 = 0: forearm along the upper arm
-                                                         // shoulder: a2 c2 + a3 c23 - d4 s23 = 0 for q3 = -2.0, by bisection in q2
+                                    // shoulder: a2 c2 + a3 c23 - d4 s23 = 0 for q3 = -2.0, by bisection in q2
     let q3 = -2.0_f64;
     let shoulder = |q2: f64| a2 * q2.cos() + a3 * (q2 + q3).cos() - d4 * (q2 + q3).sin();
     let (mut lo, mut hi) = (0.0_f64, 3.0_f64);

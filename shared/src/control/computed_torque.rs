@@ -21,9 +21,9 @@ use super::orientation::orientation_error;
 pub struct TaskReference<T: RealField + Copy> {
     /// Desired `base_from_flange`.
     pub base_from_flange: Isometry3<T>,
-    /// Desired twist `[v; omega]` of the flange origin [m/s; rad/s].
+    /// Desired twist `[v; omega]` of the flange origin (m/s; rad/s).
     pub twist: Vector6<T>,
-    /// Desired classical acceleration `[a; alpha]` [m/s^2; rad/s^2].
+    /// Desired classical acceleration `[a; alpha]` (m/s^2; rad/s^2).
     pub acceleration: Vector6<T>,
 }
 
@@ -32,9 +32,9 @@ pub struct TaskReference<T: RealField + Copy> {
 pub struct ControllerConfig<T> {
     /// Outer-loop gains (Eq 23's `Kp`, `Kd`, plus `Ki`).
     pub gains: TaskGains<T>,
-    /// Anti-windup clamp on each component of the integrated position error [m s].
+    /// Anti-windup clamp on each component of the integrated position error (m s).
     pub position_integral_limit: T,
-    /// Anti-windup clamp on each component of the integrated orientation error [rad s].
+    /// Anti-windup clamp on each component of the integrated orientation error (rad s).
     pub orientation_integral_limit: T,
     /// Singularity damping of the Jacobian solve.
     pub damping: DampingConfig<T>,
@@ -66,9 +66,9 @@ pub struct ControlOutput<T> {
     pub tau: Joints<T>,
     /// Joint accelerations commanded to the RNEA pass (zero in a hold).
     pub qdd: Joints<T>,
-    /// `p_d - p` in the base frame [m] (zero in a hold: not evaluated).
+    /// `p_d - p` in the base frame (m) (zero in a hold: not evaluated).
     pub position_error: Vector3<T>,
-    /// `log(R_d R^T)` in the base frame [rad] (zero in a hold).
+    /// `log(R_d R^T)` in the base frame (rad) (zero in a hold).
     pub orientation_error: Vector3<T>,
     /// `|det J|` at this step (zero in a hold).
     pub manipulability: T,

@@ -16,7 +16,7 @@ use super::error::ControlError;
 /// When and how hard the Jacobian solve is damped.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DampingConfig<T> {
-    /// Manipulability `w0 = |det J|` [m^3] below which damping starts.
+    /// Manipulability `w0 = |det J|` (m^3) below which damping starts.
     pub manipulability_threshold: T,
     /// Damping `lambda_max` reached at `|det J| = 0` (units of the rows of `J`).
     pub max_damping: T,

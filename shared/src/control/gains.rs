@@ -15,11 +15,11 @@ use super::error::ControlError;
 /// PID gains of one group of task coordinates (all three axes share them).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AxisGains<T> {
-    /// Proportional gain `Kp` [1/s^2].
+    /// Proportional gain `Kp` (1/s^2).
     pub kp: T,
-    /// Derivative gain `Kd` [1/s].
+    /// Derivative gain `Kd` (1/s).
     pub kd: T,
-    /// Integral gain `Ki` [1/s^3]; 0 for the paper's PD loop.
+    /// Integral gain `Ki` (1/s^3); 0 for the paper's PD loop.
     pub ki: T,
 }
 

@@ -14,8 +14,8 @@ use super::orientation::orientation_error;
 
 /// Joint position with `base_from_flange(q) = target`, starting from `seed`.
 ///
-/// Stops when the position error is below `tolerance` [m] and the
-/// orientation error below `tolerance` [rad]; errors with
+/// Stops when the position error is below `tolerance` (m) and the
+/// orientation error below `tolerance` (rad); errors with
 /// [`ControlError::InverseKinematicsDidNotConverge`] after `max_iterations`.
 pub fn solve_pose<T: RealField + Copy, M: TaskSpaceModel<T>>(
     model: &M,

@@ -41,6 +41,6 @@ pub trait TaskSpaceModel<T: RealField + Copy> {
     ) -> Joints<T>;
     /// Torque that holds the arm still at `q`.
     fn gravity_torque(&self, q: &Joints<T>) -> Joints<T>;
-    /// Symmetric torque limits `|tau_i| <= limit_i` [N m].
+    /// Symmetric torque limits `|tau_i| <= limit_i` (N m).
     fn torque_limits(&self) -> Joints<T>;
 }

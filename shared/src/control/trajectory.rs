@@ -13,18 +13,18 @@ use super::computed_torque::TaskReference;
 /// Flange origin on `centre + radius [cos(w t), sin(w t), 0]` (base frame), constant orientation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CircleTrajectory<T: RealField + Copy> {
-    /// Centre of the circle in the base frame [m].
+    /// Centre of the circle in the base frame (m).
     pub centre: Vector3<T>,
-    /// Radius [m].
+    /// Radius (m).
     pub radius: T,
-    /// Angular rate `w` about base +Z [rad/s].
+    /// Angular rate `w` about base +Z (rad/s).
     pub angular_rate: T,
     /// Fixed `base_from_flange` rotation (e.g. flange pointing down).
     pub orientation: UnitQuaternion<T>,
 }
 
 impl<T: RealField + Copy> CircleTrajectory<T> {
-    /// Pose, twist and acceleration at time `t` [s].
+    /// Pose, twist and acceleration at time `t` (s).
     pub fn reference(&self, t: T) -> TaskReference<T> {
         let (sin, cos) = (self.angular_rate * t).sin_cos();
         let (r, w) = (self.radius, self.angular_rate);

@@ -160,14 +160,14 @@ pub fn rk4_step(
 pub struct Sample {
     pub t: f64,
     pub q: Joints<f64>,
-    /// True flange position error |p_d - p| of the plant [m] (f64 kinematics).
+    /// True flange position error |p_d - p| of the plant (m) (f64 kinematics).
     pub position_error: f64,
-    /// True flange orientation error |log(R_d R^T)| of the plant [rad].
+    /// True flange orientation error |log(R_d R^T)| of the plant (rad).
     pub orientation_error: f64,
     pub output: ControlOutput<f32>,
 }
 
-/// Control period and run length [s].
+/// Control period and run length (s).
 pub struct Timing {
     pub dt: f64,
     pub duration: f64,
