@@ -2,6 +2,11 @@
 //! dynamics, in f64 (simulator plant) and f32 (controller). Goal: f64 RNEA under 0.5 us.
 //!
 //! `cargo bench -p shared --bench robot_dynamics -- --warm-up-time 1 --measurement-time 3`
+//!
+//! On a shared, loaded machine the wall-clock means are inflated by preemption; the fastest
+//! sample in `target/criterion/<name>/new/sample.json` (time / iters) is the uncontended figure.
+//! A load-independent count: `valgrind --tool=callgrind <bench binary> --bench --profile-time 1
+//! '^rnea_f64$'`, then inclusive instructions of `inverse_dynamics_with` per call.
 
 use std::hint::black_box;
 

@@ -44,9 +44,9 @@ impl Twist {
 /// One row of the standard DH table (all PUMA offsets are 0, so there is no offset field).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DhLink<T> {
-    /// Link length `a_i` along `x_i` [m].
+    /// Link length `a_i` along `x_i` (m).
     pub a: T,
-    /// Link offset `d_i` along `z_{i-1}` [m].
+    /// Link offset `d_i` along `z_{i-1}` (m).
     pub d: T,
     /// Link twist `alpha_i` about `x_i`.
     pub twist: Twist,
@@ -143,5 +143,64 @@ impl<T: RealField + Copy> JointTrig<T> {
             SinCos { sin, cos }
         });
         JointTrig { joints }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix3, Rotation3};
+
+    /// The full `R_i = Rz(q) Rx(alpha)` as a matrix, the slow obvious way.
+    fn rotation(q: f64, twist: Twist) -> Matrix3<f64> {
+        (Rotation3::from_axis_angle(&Vector3::z_axis(), q)
+            * Rotation3::from_axis_angle(&Vector3::x_axis(), twist.radians::<f64>()))
+        .into_inner()
+    }
+
+    #[test]
+    fn structured_rotations_match_the_full_matrices() {
+        let v = Vector3::new(0.3, -1.7, 2.9);
+        for twist in [Twist::Zero, Twist::PlusHalfPi, Twist::MinusHalfPi] {
+            let link = DhLink {
+                a: 0.2,
+                d: 0.4,
+                twist,
+            };
+            for q in [-2.5, -0.3, 0.0, 1.1, 3.0] {
+                let (sin, cos) = f64::sin_cos(q);
+                let trig = SinCos { sin, cos };
+                let full = rotation(q, twist);
+                assert!((link.to_parent(&trig, &v) - full * v).abs().max() < 1e-15);
+                assert!(
+                    (link.to_child(&trig, &v) - full.transpose() * v)
+                        .abs()
+                        .max()
+                        < 1e-15
+                );
+                let axes = link.child_axes(&trig, &[Vector3::x(), Vector3::y(), Vector3::z()]);
+                for (axis, column) in axes.iter().zip(full.column_iter()) {
+                    assert!((axis - column).abs().max() < 1e-15);
+                }
+                // z_{i-1} in frame {i} is the third row of R_i.
+                let z_parent_in_child = full.transpose() * Vector3::z();
+                assert!((link.along_joint_axis(&v) - z_parent_in_child.dot(&v)).abs() < 1e-15);
+            }
+            // p*_i = R_i^T (d z + a x_i) at q = 0: the offset of {i} from {i-1} in frame {i}.
+            let full = rotation(0.0, twist);
+            let offset_parent = Vector3::new(link.a, 0.0, link.d);
+            let expected = full.transpose() * offset_parent;
+            assert!((link.origin_in_child() - expected).abs().max() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn twist_sin_cos_are_exact() {
+        for twist in [Twist::Zero, Twist::PlusHalfPi, Twist::MinusHalfPi] {
+            let (s, c) = twist.sin_cos();
+            let angle = twist.radians::<f64>();
+            assert!((f64::from(s) - angle.sin()).abs() < 1e-15);
+            assert!((f64::from(c) - angle.cos()).abs() < 1e-15);
+        }
     }
 }

@@ -35,6 +35,20 @@ impl<T: RealField + Copy> Puma560<T> {
         self.inverse_dynamics_with(&trig, qd, qdd)
     }
 
+    /// [`Self::inverse_dynamics`] for untrusted input: rejects non-finite `q`, `qd`, `qdd` with
+    /// an error naming the argument and joint, instead of propagating NaN into a torque command.
+    pub fn try_inverse_dynamics(
+        &self,
+        q: &JointVector<T>,
+        qd: &JointVector<T>,
+        qdd: &JointVector<T>,
+    ) -> Result<JointVector<T>, RobotError> {
+        require_finite("q", q)?;
+        require_finite("qd", qd)?;
+        require_finite("qdd", qdd)?;
+        Ok(self.inverse_dynamics(q, qd, qdd))
+    }
+
     /// [`Self::inverse_dynamics`] with the joint trig computed by the caller (reuse across terms).
     pub fn inverse_dynamics_with(
         &self,

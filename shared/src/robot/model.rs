@@ -25,11 +25,11 @@ pub struct DriveOptions {
 /// Rigid-body parameters of one link as the table gives them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LinkInertial<T> {
-    /// Mass [kg].
+    /// Mass (kg).
     pub mass: T,
-    /// Centre of mass in frame {j}, relative to its origin [m].
+    /// Centre of mass in frame {j}, relative to its origin (m).
     pub com: Vector3<T>,
-    /// Inertia tensor about the COM, axes parallel to frame {j} [kg m^2].
+    /// Inertia tensor about the COM, axes parallel to frame {j} (kg m^2).
     pub inertia_com: Matrix3<T>,
 }
 
@@ -38,35 +38,35 @@ pub struct LinkInertial<T> {
 pub struct DriveParams<T> {
     /// Gear ratio `G` (signed).
     pub gear_ratio: T,
-    /// Motor armature inertia `Jm` [kg m^2].
+    /// Motor armature inertia `Jm` (kg m^2).
     pub motor_inertia: T,
-    /// Viscous friction `B` [N m s/rad].
+    /// Viscous friction `B` (N m s/rad).
     pub viscous: T,
-    /// Coulomb friction for `qd > 0` [N m].
+    /// Coulomb friction for `qd > 0` (N m).
     pub coulomb_positive: T,
-    /// Coulomb friction for `qd < 0` [N m] (negative).
+    /// Coulomb friction for `qd < 0` (N m) (negative).
     pub coulomb_negative: T,
 }
 
 /// A point mass fixed in the flange frame {6}.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Payload<T> {
-    /// Mass [kg].
+    /// Mass (kg).
     pub mass: T,
-    /// Position in frame {6} [m].
+    /// Position in frame {6} (m).
     pub com_flange: Vector3<T>,
 }
 
 /// Joint limits: position from the table, velocity and torque see [`table`] (derived/assumed).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct JointLimits<T> {
-    /// Lower position limit [rad].
+    /// Lower position limit (rad).
     pub position_min: JointVector<T>,
-    /// Upper position limit [rad].
+    /// Upper position limit (rad).
     pub position_max: JointVector<T>,
-    /// Symmetric speed limit `|qd| <= velocity_max` [rad/s].
+    /// Symmetric speed limit `|qd| <= velocity_max` (rad/s).
     pub velocity_max: JointVector<T>,
-    /// Symmetric torque limit `|tau| <= torque_max` [N m].
+    /// Symmetric torque limit `|tau| <= torque_max` (N m).
     pub torque_max: JointVector<T>,
 }
 
@@ -75,11 +75,11 @@ pub struct JointLimits<T> {
 /// parameters, so a payload or a mass scale is a plain sum or product.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BodyInertia<T> {
-    /// Mass [kg].
+    /// Mass (kg).
     pub mass: T,
-    /// First moment of mass `m c` about the frame origin [kg m].
+    /// First moment of mass `m c` about the frame origin (kg m).
     pub first_moment: Vector3<T>,
-    /// Inertia about the frame origin [kg m^2].
+    /// Inertia about the frame origin (kg m^2).
     pub inertia_origin: Matrix3<T>,
 }
 
@@ -99,13 +99,13 @@ impl<T: RealField + Copy> BodyInertia<T> {
 /// Drive terms referred to the joint side, precomputed for the hot paths.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct JointDrive<T> {
-    /// `G^2 Jm` [kg m^2].
+    /// `G^2 Jm` (kg m^2).
     pub armature: T,
-    /// `G^2 B` times the friction scale [N m s/rad].
+    /// `G^2 B` times the friction scale (N m s/rad).
     pub viscous: T,
-    /// `|G| Tc+` times the friction scale [N m].
+    /// `|G| Tc+` times the friction scale (N m).
     pub coulomb_positive: T,
-    /// `|G| Tc-` times the friction scale [N m].
+    /// `|G| Tc-` times the friction scale (N m).
     pub coulomb_negative: T,
 }
 
@@ -450,7 +450,7 @@ impl<T: RealField + Copy> Puma560<T> {
         self.options
     }
 
-    /// Gravity in the base frame [m/s^2].
+    /// Gravity in the base frame (m/s^2).
     pub fn gravity(&self) -> &Vector3<T> {
         &self.gravity
     }

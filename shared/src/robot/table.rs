@@ -8,7 +8,7 @@
 
 use super::dh::Twist;
 
-/// Standard DH rows `(a [m], d [m], twist)`, joints 1..6 (all offsets 0).
+/// Standard DH rows `(a (m), d (m), twist)`, joints 1..6 (all offsets 0).
 pub const DH_ROWS: [(f64, f64, Twist); 6] = [
     (0.0, 0.67183, Twist::PlusHalfPi),
     (0.4318, 0.0, Twist::Zero),
@@ -18,10 +18,10 @@ pub const DH_ROWS: [(f64, f64, Twist); 6] = [
     (0.0, 0.0, Twist::Zero),
 ];
 
-/// Link masses [kg]. Link 1 has mass 0 (AKB86 found none) but a non-zero Iyy: it is not skipped.
+/// Link masses (kg). Link 1 has mass 0 (AKB86 found none) but a non-zero Iyy: it is not skipped.
 pub const MASS: [f64; 6] = [0.0, 17.4, 4.8, 0.82, 0.34, 0.09];
 
-/// Centres of mass in link frame {j}, relative to its origin [m].
+/// Centres of mass in link frame {j}, relative to its origin (m).
 pub const COM: [[f64; 3]; 6] = [
     [0.0, 0.0, 0.0],
     [-0.3638, 0.006, 0.2275],
@@ -31,7 +31,7 @@ pub const COM: [[f64; 3]; 6] = [
     [0.0, 0.0, 0.032],
 ];
 
-/// Principal inertias `[Ixx, Iyy, Izz]` about the COM, axes parallel to frame {j} [kg m^2]
+/// Principal inertias `[Ixx, Iyy, Izz]` about the COM, axes parallel to frame {j} (kg m^2)
 /// (all products of inertia are 0 in the table).
 pub const INERTIA_DIAGONAL: [[f64; 3]; 6] = [
     [0.0, 0.35, 0.0],
@@ -42,25 +42,25 @@ pub const INERTIA_DIAGONAL: [[f64; 3]; 6] = [
     [0.15e-3, 0.15e-3, 0.04e-3],
 ];
 
-/// Motor (armature) inertia `Jm`, motor side [kg m^2].
+/// Motor (armature) inertia `Jm`, motor side (kg m^2).
 pub const MOTOR_INERTIA: [f64; 6] = [200e-6, 200e-6, 200e-6, 33e-6, 33e-6, 33e-6];
 
 /// Gear ratio `G` (signed, as in the toolbox).
 pub const GEAR_RATIO: [f64; 6] = [-62.6111, 107.815, -53.7063, 76.0364, 71.923, 76.686];
 
-/// Viscous friction `B`, motor side [N m s/rad].
+/// Viscous friction `B`, motor side (N m s/rad).
 pub const VISCOUS_FRICTION: [f64; 6] = [1.48e-3, 0.817e-3, 1.38e-3, 71.2e-6, 82.6e-6, 36.7e-6];
 
-/// Coulomb friction `Tc+` (applied for qd > 0), motor side [N m].
+/// Coulomb friction `Tc+` (applied for qd > 0), motor side (N m).
 pub const COULOMB_POSITIVE: [f64; 6] = [0.395, 0.126, 0.132, 11.2e-3, 9.26e-3, 3.96e-3];
 
-/// Coulomb friction `Tc-` (applied for qd < 0, negative), motor side [N m].
+/// Coulomb friction `Tc-` (applied for qd < 0, negative), motor side (N m).
 pub const COULOMB_NEGATIVE: [f64; 6] = [-0.435, -0.071, -0.105, -16.9e-3, -14.5e-3, -10.5e-3];
 
 /// One degree in radians: the table's position limits are whole degrees.
 const DEGREE: f64 = core::f64::consts::PI / 180.0;
 
-/// Joint position limits [rad] (Wang and Chen 1991, via the toolbox): lower bounds,
+/// Joint position limits (rad) (Wang and Chen 1991, via the toolbox): lower bounds,
 /// -160, -45, -225, -110, -100, -266 degrees.
 pub const POSITION_MIN: [f64; 6] = [
     -160.0 * DEGREE,
@@ -71,7 +71,7 @@ pub const POSITION_MIN: [f64; 6] = [
     -266.0 * DEGREE,
 ];
 
-/// Joint position limits [rad]: upper bounds, 160, 225, 45, 170, 100, 266 degrees.
+/// Joint position limits (rad): upper bounds, 160, 225, 45, 170, 100, 266 degrees.
 pub const POSITION_MAX: [f64; 6] = [
     160.0 * DEGREE,
     225.0 * DEGREE,
@@ -81,7 +81,7 @@ pub const POSITION_MAX: [f64; 6] = [
     266.0 * DEGREE,
 ];
 
-/// ASSUMED motor speed limit [rad/s] (3000 rpm), the basis of [`VELOCITY_MAX`].
+/// ASSUMED motor speed limit (rad/s) (3000 rpm), the basis of [`VELOCITY_MAX`].
 ///
 /// The model file gives no velocity limits. The PUMA 560's joint servos are brushed DC motors
 /// behind the gear ratios `G` of the table; 3000 rpm is an assumed, typical rated speed for such
@@ -89,7 +89,7 @@ pub const POSITION_MAX: [f64; 6] = [
 /// `motor limit / |G|`, which ties them to the cited gear ratios.
 pub const MOTOR_SPEED_MAX: f64 = 3000.0 * 2.0 * core::f64::consts::PI / 60.0;
 
-/// Joint speed limits [rad/s], `MOTOR_SPEED_MAX / |G_j|` (about 5.0, 2.9, 5.8, 4.1, 4.4, 4.1):
+/// Joint speed limits (rad/s), `MOTOR_SPEED_MAX / |G_j|` (about 5.0, 2.9, 5.8, 4.1, 4.4, 4.1):
 /// derived from the cited gear ratios and the ASSUMED 3000 rpm motor speed.
 pub const VELOCITY_MAX: [f64; 6] = [
     MOTOR_SPEED_MAX / 62.6111,
@@ -100,7 +100,7 @@ pub const VELOCITY_MAX: [f64; 6] = [
     MOTOR_SPEED_MAX / 76.686,
 ];
 
-/// Joint torque limits [N m]: ASSUMED.
+/// Joint torque limits (N m): ASSUMED.
 ///
 /// These are the values `[97.6, 186.4, 89.4, 24.2, 20.1, 21.3]` that are widely quoted for the
 /// PUMA 560 in the trajectory-planning literature. Their primary source could not be checked for
@@ -110,5 +110,5 @@ pub const VELOCITY_MAX: [f64; 6] = [
 /// arm can always hold itself.
 pub const TORQUE_MAX: [f64; 6] = [97.6, 186.4, 89.4, 24.2, 20.1, 21.3];
 
-/// Standard gravity of the model, base frame [m/s^2] (toolbox and Pinocchio default).
+/// Standard gravity of the model, base frame (m/s^2) (toolbox and Pinocchio default).
 pub const GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
