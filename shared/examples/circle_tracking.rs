@@ -10,30 +10,54 @@ mod control_support;
 
 use control_support::{track_circle, SplitMix};
 
-fn main() {
+fn table(switched_coulomb: bool) {
     let duration = 4.0 * core::f64::consts::PI; // two turns
     let settle = 1.5;
     println!(
-        "circle r = 0.3 m, 1 rad/s, 2 turns, 1 kHz control, RK4 plant; errors after {settle} s"
+        "\nplant Coulomb friction: {}",
+        if switched_coulomb {
+            "switched sign law (discontinuous, chatters under RK4)"
+        } else {
+            "tanh law, width 0.01 rad/s (robot::drive::SIMULATOR_COULOMB_WIDTH)"
+        }
     );
-    println!("seed  friction_known  | PD max [mm]  PD rms [mm] | PID max [mm] PID rms [mm] PID max rot [mrad] | max|tau| [N m]");
+    println!("errors after {settle} s of 2 turns; 1 kHz control, RK4 plant at 1 kHz");
+    println!("seed  friction_known | PD max [mm]  PD rms [mm] | PID max [mm] PID rms [mm] PID max rot [mrad] | max|tau| [N m]");
     let mut rng = SplitMix(0xC1_4C1E);
     let (mut worst_pd, mut worst_pid) = (0.0_f64, 0.0_f64);
     for seed in 1..=8_u64 {
         let friction_scale = rng.uniform(0.7, 1.3);
-        let pd = track_circle(seed, friction_scale, false, duration, settle);
-        let pid = track_circle(seed, friction_scale, true, duration, settle);
+        let pd = track_circle(
+            seed,
+            friction_scale,
+            false,
+            switched_coulomb,
+            duration,
+            settle,
+        );
+        let pid = track_circle(
+            seed,
+            friction_scale,
+            true,
+            switched_coulomb,
+            duration,
+            settle,
+        );
         worst_pd = worst_pd.max(pd.max_error_m);
         worst_pid = worst_pid.max(pid.max_error_m);
+        let flags = if pid.fallback_steps + pid.saturated_steps > 0 {
+            "  (saturated/fallback steps!)"
+        } else {
+            ""
+        };
         println!(
-            "{seed:>4}  x{friction_scale:<13.3} | {:>11.3}  {:>11.3} | {:>12.3} {:>12.3} {:>18.3} | {:>8.1}{}",
+            "{seed:>4}  x{friction_scale:<12.3} | {:>11.3}  {:>11.3} | {:>12.3} {:>12.3} {:>18.3} | {:>8.1}{flags}",
             pd.max_error_m * 1e3,
             pd.rms_error_m * 1e3,
             pid.max_error_m * 1e3,
             pid.rms_error_m * 1e3,
             pid.max_orientation_error_rad * 1e3,
             pid.max_abs_tau,
-            if pid.fallback_steps + pid.saturated_steps > 0 { "  (saturated/fallback steps!)" } else { "" }
         );
     }
     println!(
@@ -41,4 +65,9 @@ fn main() {
         worst_pd * 1e3,
         worst_pid * 1e3
     );
+}
+
+fn main() {
+    table(false);
+    table(true);
 }

@@ -22,7 +22,7 @@ fn circle_tracking_with_integral_action_stays_below_goal() {
     let mut rng = SplitMix(0x00C0_1720);
     for seed in [1_u64, 2, 3] {
         let friction_scale = rng.uniform(0.7, 1.3);
-        let stats = track_circle(seed, friction_scale, true, DURATION_S, SETTLE_S);
+        let stats = track_circle(seed, friction_scale, true, false, DURATION_S, SETTLE_S);
         println!("seed {seed}, friction known x{friction_scale:.3}: PID {stats:?}");
         assert_eq!(stats.fallback_steps, 0);
         assert!(stats.max_abs_tau.is_finite());
@@ -48,8 +48,8 @@ fn circle_tracking_with_integral_action_stays_below_goal() {
 #[test]
 fn pd_only_leaves_a_larger_error_than_pid() {
     for (seed, friction_scale) in [(4_u64, 0.7), (5, 1.3)] {
-        let pd = track_circle(seed, friction_scale, false, DURATION_S, SETTLE_S);
-        let pid = track_circle(seed, friction_scale, true, DURATION_S, SETTLE_S);
+        let pd = track_circle(seed, friction_scale, false, false, DURATION_S, SETTLE_S);
+        let pid = track_circle(seed, friction_scale, true, false, DURATION_S, SETTLE_S);
         println!(
             "seed {seed} friction x{friction_scale}: PD max {:.3} mm rms {:.3} mm | PID max {:.3} mm rms {:.3} mm",
             pd.max_error_m * 1e3,

@@ -8,6 +8,7 @@ use shared::control::{
     orientation_error, solve_pose, AxisGains, CircleTrajectory, ControlOutput, ControllerConfig,
     DampingConfig, Joints, TaskGains, TaskReference, TaskSpaceController,
 };
+use shared::robot::drive::SIMULATOR_COULOMB_WIDTH;
 use shared::robot::{DriveOptions, Puma560};
 
 /// Deterministic uniform numbers in [0, 1) (splitmix64), so every run is reproducible.
@@ -57,20 +58,35 @@ pub const IK_SEED: [f64; 6] = [0.2, 0.0, -2.1, 0.0, -1.0, -2.9];
 
 /// Plant with model mismatch: each link mass (and inertia) scaled by 1 +/- 10 %
 /// (seeded), a 1 kg payload 5 cm below the flange, armature and friction on.
-pub fn mismatched_plant(rng: &mut SplitMix) -> (Puma560<f64>, [f64; 6]) {
+/// Coulomb friction is the robot model's tanh law of the suggested width
+/// (0.01 rad/s, stable under RK4 at 1 kHz) unless `switched_coulomb`, which
+/// keeps the discontinuous sign law (a harsher, chattering plant).
+pub fn mismatched_plant(rng: &mut SplitMix, switched_coulomb: bool) -> (Puma560<f64>, [f64; 6]) {
     let scales: [f64; 6] = core::array::from_fn(|_| rng.uniform(0.9, 1.1));
     let plant = Puma560::<f64>::new()
         .with_drive(BOTH_DRIVE_TERMS)
         .with_link_mass_scale(scales)
         .with_payload(1.0, Vector3::new(0.0, 0.0, 0.05));
+    let plant = if switched_coulomb {
+        plant
+    } else {
+        plant
+            .try_with_coulomb_smoothing(SIMULATOR_COULOMB_WIDTH)
+            .expect("width")
+    };
     (plant, scales)
 }
 
-/// The controller's model: nominal masses, no payload, friction known within `friction_scale`.
+/// The controller's model: nominal masses, no payload, friction known within
+/// `friction_scale`, Coulomb term smoothed like the plant's (a sign law on a
+/// measured velocity near zero would only inject chatter).
 pub fn controller_model(friction_scale: f64) -> Puma560<f32> {
-    Puma560::<f64>::new()
+    let model = Puma560::<f64>::new()
         .with_drive(BOTH_DRIVE_TERMS)
-        .with_friction_scale(friction_scale)
+        .with_friction_scale(friction_scale);
+    model
+        .try_with_coulomb_smoothing(SIMULATOR_COULOMB_WIDTH)
+        .expect("width")
         .cast::<f32>()
 }
 
@@ -231,11 +247,12 @@ pub fn track_circle(
     seed: u64,
     friction_scale: f64,
     integral: bool,
+    switched_coulomb: bool,
     duration: f64,
     settle: f64,
 ) -> TrackingStats {
     let mut rng = SplitMix(seed);
-    let (plant, _) = mismatched_plant(&mut rng);
+    let (plant, _) = mismatched_plant(&mut rng, switched_coulomb);
     let model = controller_model(friction_scale);
     let circle = task_circle();
     let start = start_on(&plant, &circle.reference(0.0));
