@@ -9,6 +9,7 @@ use shared::control::{
     orientation_error, solve_damped, solve_pose, AxisGains, CircleTrajectory, ControllerConfig,
     DampingConfig, Joints, TaskGains, TaskReference, TaskSpaceController, TaskSpaceModel,
 };
+use shared::robot::drive::SIMULATOR_COULOMB_WIDTH;
 use shared::robot::{DriveOptions, Puma560};
 
 use super::timer;
@@ -48,12 +49,15 @@ fn main() -> ! {
 
 fn run() -> Option<()> {
     let timer = timer::DualTimer::start();
-    // Controller model as on the firmware: f64 table with armature and friction, cast to f32.
+    // Controller model as in the closed-loop tests: f64 table with armature and
+    // friction (tanh Coulomb law), cast to f32.
     let model = Puma560::<f64>::new()
         .with_drive(DriveOptions {
             armature: true,
             friction: true,
         })
+        .try_with_coulomb_smoothing(SIMULATOR_COULOMB_WIDTH)
+        .ok()?
         .cast::<f32>();
     let circle = CircleTrajectory {
         centre: Vector3::new(0.5_f32, 0.0, 0.4),
