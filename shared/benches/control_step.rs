@@ -11,6 +11,7 @@ use shared::control::{
     solve_damped, solve_pose, AxisGains, CircleTrajectory, ControllerConfig, DampingConfig, Joints,
     TaskGains, TaskReference, TaskSpaceController, TaskSpaceModel,
 };
+use shared::robot::drive::SIMULATOR_COULOMB_WIDTH;
 use shared::robot::{DriveOptions, Puma560};
 
 fn config<T: RealField + Copy>() -> ControllerConfig<T> {
@@ -32,10 +33,13 @@ fn config<T: RealField + Copy>() -> ControllerConfig<T> {
 
 /// A state on the task circle with a small tracking error.
 fn state() -> (Puma560<f64>, Joints<f64>, Joints<f64>, TaskReference<f64>) {
-    let model = Puma560::<f64>::new().with_drive(DriveOptions {
-        armature: true,
-        friction: true,
-    });
+    let model = Puma560::<f64>::new()
+        .with_drive(DriveOptions {
+            armature: true,
+            friction: true,
+        })
+        .try_with_coulomb_smoothing(SIMULATOR_COULOMB_WIDTH)
+        .expect("positive width");
     let circle = CircleTrajectory {
         centre: Vector3::new(0.5, 0.0, 0.4),
         radius: 0.3,
