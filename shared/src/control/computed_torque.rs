@@ -191,16 +191,16 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
         let error_rate = reference.twist - jacobian * qd;
         let integral = self.integrate(&error, dt);
 
+        // Eq 23's outer loop, `a = Yd_ddot + Kv e_dot + Kp e (+ Ki int e)`,
+        // with one gain set for the position rows and one for the orientation rows.
         let (gp, go) = (&self.config.gains.position, &self.config.gains.orientation);
-        let gain = |row: usize, kp_p: T, kp_o: T| if row < 3 { kp_p } else { kp_o };
-        let commanded_acceleration = Vector6::from_fn(|row, _| {
-            let pick = |f: fn(&AxisGains<T>) -> T| gain(row, f(gp), f(go));
-            let component = |v: &Vector6<T>| v.get(row).copied().unwrap_or_else(T::zero);
-            component(&reference.acceleration)
-                + pick(|g| g.kd) * component(&error_rate)
-                + pick(|g| g.kp) * component(&error)
-                + pick(|g| g.ki) * component(&integral)
-        });
+        let kp = per_row(gp.kp, go.kp);
+        let kd = per_row(gp.kd, go.kd);
+        let ki = per_row(gp.ki, go.ki);
+        let commanded_acceleration = reference.acceleration
+            + kd.component_mul(&error_rate)
+            + kp.component_mul(&error)
+            + ki.component_mul(&integral);
 
         let solution = solve_damped(
             &jacobian,
@@ -285,6 +285,18 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
             fallback: Some(cause),
         }
     }
+}
+
+/// `[position; position; position; orientation; orientation; orientation]`.
+fn per_row<T: RealField + Copy>(position: T, orientation: T) -> Vector6<T> {
+    Vector6::new(
+        position,
+        position,
+        position,
+        orientation,
+        orientation,
+        orientation,
+    )
 }
 
 fn check_inputs<T: RealField + Copy>(
