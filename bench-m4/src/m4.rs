@@ -1,0 +1,237 @@
+//! Bare-metal entry point and measurements (see the crate docs).
+
+use core::hint::black_box;
+
+use cortex_m_rt::entry;
+use cortex_m_semihosting::{debug, hprintln};
+use nalgebra::{UnitQuaternion, Vector3};
+use shared::control::{
+    orientation_error, solve_damped, solve_pose, AxisGains, CircleTrajectory, ControllerConfig,
+    DampingConfig, Joints, TaskGains, TaskReference, TaskSpaceController, TaskSpaceModel,
+};
+use shared::robot::drive::SIMULATOR_COULOMB_WIDTH;
+use shared::robot::{DriveOptions, Puma560};
+
+use super::timer;
+
+const CALLS: u32 = 200;
+
+fn config() -> Option<ControllerConfig<f32>> {
+    let gains = AxisGains::from_poles(40.0_f32, 1.0, 10.0).ok()?;
+    Some(ControllerConfig {
+        gains: TaskGains {
+            position: gains,
+            orientation: gains,
+        },
+        position_integral_limit: 0.005,
+        orientation_integral_limit: 0.02,
+        damping: DampingConfig {
+            manipulability_threshold: 0.01,
+            max_damping: 0.05,
+        },
+    })
+}
+
+#[entry]
+fn main() -> ! {
+    let code = match run() {
+        Some(()) => debug::EXIT_SUCCESS,
+        None => {
+            hprintln!("bench-m4: setup failed");
+            debug::EXIT_FAILURE
+        }
+    };
+    debug::exit(code);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+fn run() -> Option<()> {
+    let timer = timer::DualTimer::start();
+    // Controller model as in the closed-loop tests: f64 table with armature and
+    // friction (tanh Coulomb law), cast to f32.
+    let model = Puma560::<f64>::new()
+        .with_drive(DriveOptions {
+            armature: true,
+            friction: true,
+        })
+        .try_with_coulomb_smoothing(SIMULATOR_COULOMB_WIDTH)
+        .ok()?
+        .cast::<f32>();
+    let circle = CircleTrajectory {
+        centre: Vector3::new(0.5_f32, 0.0, 0.4),
+        radius: 0.3,
+        angular_rate: 1.0,
+        orientation: UnitQuaternion::from_axis_angle(&Vector3::x_axis(), core::f32::consts::PI),
+    };
+    let reference: TaskReference<f32> = circle.reference(0.3);
+    let seed = Joints::new(0.2_f32, 0.0, -2.1, 0.0, -1.0, -2.9);
+    let q = solve_pose(&model, &reference.base_from_flange, &seed, 1e-5, 100).ok()?
+        + Joints::repeat(1e-3);
+    let qd = Joints::new(0.3_f32, -0.2, 0.4, 0.01, -0.3, 0.2);
+    let mut controller = TaskSpaceController::new(config()?).ok()?;
+
+    hprintln!(
+        "bench-m4: instructions per call on mps2-an386 (Cortex-M4F), {} calls each",
+        CALLS
+    );
+    let empty = timer.measure(CALLS, || black_box(()));
+    hprintln!("  timer/loop overhead             {:>6}", empty);
+
+    let step = timer.measure(CALLS, || {
+        controller.step(
+            &model,
+            black_box(&q),
+            black_box(&qd),
+            black_box(&reference),
+            1e-3,
+        )
+    });
+    let out = controller.step(&model, &q, &qd, &reference, 1e-3);
+    hprintln!(
+        "  full f32 control step           {:>6}   (fallback {:?}, damping {}, |e_p| {} m)",
+        step,
+        out.fallback,
+        out.damping_squared,
+        out.position_error.norm()
+    );
+
+    // worst case: near the wrist singularity the damped branch (second Cholesky) runs
+    let mut q_singular = q;
+    q_singular[4] = 0.002;
+    let reference_singular = TaskReference {
+        base_from_flange: model.forward_kinematics(&q_singular),
+        ..reference
+    };
+    let mut controller_singular = TaskSpaceController::new(config()?).ok()?;
+    let step_singular = timer.measure(CALLS, || {
+        controller_singular.step(
+            &model,
+            black_box(&q_singular),
+            black_box(&qd),
+            black_box(&reference_singular),
+            1e-3,
+        )
+    });
+    let out = controller_singular.step(&model, &q_singular, &qd, &reference_singular, 1e-3);
+    hprintln!(
+        "  full step near q5 = 0 (damped)  {:>6}   (fallback {:?}, damping {})",
+        step_singular,
+        out.fallback,
+        out.damping_squared
+    );
+
+    let trig = model.configuration(&q);
+    let kin = model.task_kinematics(&trig, &qd);
+    let parts = [
+        (
+            "  6 x sin_cos (JointTrig)        ",
+            timer.measure(CALLS, || model.configuration(black_box(&q))),
+        ),
+        (
+            "  frame chain + J + Jdot qd      ",
+            timer.measure(CALLS, || {
+                model.task_kinematics(black_box(&trig), black_box(&qd))
+            }),
+        ),
+        (
+            "  orientation error (log map)    ",
+            timer.measure(CALLS, || {
+                orientation_error(
+                    black_box(&reference.base_from_flange.rotation),
+                    black_box(&kin.base_from_flange.rotation),
+                )
+            }),
+        ),
+        (
+            "  solve, undamped (1 Cholesky)   ",
+            timer.measure(CALLS, || {
+                solve_damped(
+                    black_box(&kin.jacobian),
+                    black_box(&kin.jacobian_dot_qd),
+                    &DampingConfig {
+                        manipulability_threshold: 0.0,
+                        max_damping: 0.0,
+                    },
+                )
+            }),
+        ),
+        (
+            "  solve, damped (2 Cholesky)     ",
+            timer.measure(CALLS, || {
+                solve_damped(
+                    black_box(&kin.jacobian),
+                    black_box(&kin.jacobian_dot_qd),
+                    &DampingConfig {
+                        manipulability_threshold: 1.0,
+                        max_damping: 0.05,
+                    },
+                )
+            }),
+        ),
+        (
+            "  RNEA + armature + friction     ",
+            timer.measure(CALLS, || {
+                TaskSpaceModel::inverse_dynamics(
+                    &model,
+                    black_box(&trig),
+                    black_box(&qd),
+                    black_box(&qd),
+                )
+            }),
+        ),
+        (
+            "  gravity torque (hold fallback) ",
+            timer.measure(CALLS, || {
+                TaskSpaceModel::gravity_torque(&model, black_box(&q))
+            }),
+        ),
+    ];
+    for (name, count) in parts {
+        hprintln!("{} {:>6}", name, count);
+    }
+
+    let x = 0.7_f32;
+    let math = [
+        (
+            "  libm sinf + cosf (sin_cos)     ",
+            timer.measure(CALLS, || libm::sincosf(black_box(x))),
+        ),
+        (
+            "  micromath sin_cos              ",
+            timer.measure(CALLS, || micromath::F32(black_box(x)).sin_cos()),
+        ),
+        (
+            "  libm atan2f                    ",
+            timer.measure(CALLS, || libm::atan2f(black_box(x), black_box(0.9))),
+        ),
+        (
+            "  micromath atan2                ",
+            timer.measure(CALLS, || {
+                micromath::F32(black_box(x)).atan2(micromath::F32(black_box(0.9)))
+            }),
+        ),
+        (
+            "  libm sqrtf                     ",
+            timer.measure(CALLS, || libm::sqrtf(black_box(x))),
+        ),
+        (
+            "  micromath sqrt                 ",
+            timer.measure(CALLS, || micromath::F32(black_box(x)).sqrt()),
+        ),
+    ];
+    for (name, count) in math {
+        hprintln!("{} {:>6}", name, count);
+    }
+    Some(())
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    hprintln!("panic: {}", info);
+    debug::exit(debug::EXIT_FAILURE);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}

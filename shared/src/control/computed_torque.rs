@@ -1,0 +1,349 @@
+//! The task-space computed-torque step (paper Eq 23).
+//!
+//! Eq 23 resolves a commanded flange acceleration into joint accelerations,
+//! `qdd = J^-1 (a_d + Kd e_dot + Kp e - Jdot qd)`, and feeds them through the
+//! inverse dynamics, `tau = D(q) qdd + h(q, qd)`. Here the inverse dynamics is
+//! one RNEA pass (`D` is never formed nor inverted), `J^-1` is the damped
+//! least-squares solve of [`super::dls`], and an integral term with
+//! anti-windup removes the steady error that model mismatch (unknown payload,
+//! friction) leaves under the paper's pure PD outer loop.
+
+use nalgebra::{Isometry3, RealField, Vector3, Vector6};
+
+use super::dls::{solve_damped, DampingConfig};
+use super::error::{ControlError, ControlInput, ControlStage};
+use super::gains::{AxisGains, TaskGains};
+use super::model::{Joints, TaskKinematics, TaskSpaceModel};
+use super::orientation::orientation_error;
+
+/// Desired motion of the flange (frame {6}), all in the base frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TaskReference<T: RealField + Copy> {
+    /// Desired `base_from_flange`.
+    pub base_from_flange: Isometry3<T>,
+    /// Desired twist `[v; omega]` of the flange origin (m/s; rad/s).
+    pub twist: Vector6<T>,
+    /// Desired classical acceleration `[a; alpha]` (m/s^2; rad/s^2).
+    pub acceleration: Vector6<T>,
+}
+
+/// Tuning of the controller.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ControllerConfig<T> {
+    /// Outer-loop gains (Eq 23's `Kp`, `Kd`, plus `Ki`).
+    pub gains: TaskGains<T>,
+    /// Anti-windup clamp on each component of the integrated position error (m s).
+    pub position_integral_limit: T,
+    /// Anti-windup clamp on each component of the integrated orientation error (rad s).
+    pub orientation_integral_limit: T,
+    /// Singularity damping of the Jacobian solve.
+    pub damping: DampingConfig<T>,
+}
+
+impl<T: RealField + Copy> ControllerConfig<T> {
+    /// Rejects negative or non-finite gains and limits.
+    pub fn validate(&self) -> Result<(), ControlError> {
+        let ok = |x: T| x.is_finite() && x >= T::zero();
+        let gains_ok = |g: &AxisGains<T>| ok(g.kp) && ok(g.kd) && ok(g.ki);
+        if !gains_ok(&self.gains.position) || !gains_ok(&self.gains.orientation) {
+            return Err(ControlError::InvalidConfiguration(
+                "gains must be finite and >= 0",
+            ));
+        }
+        if !ok(self.position_integral_limit) || !ok(self.orientation_integral_limit) {
+            return Err(ControlError::InvalidConfiguration(
+                "integral limits must be finite and >= 0",
+            ));
+        }
+        self.damping.validate()
+    }
+}
+
+/// What one control step produced.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ControlOutput<T> {
+    /// Joint torques to apply, always finite and within the torque limits.
+    pub tau: Joints<T>,
+    /// Joint accelerations commanded to the RNEA pass (zero in a hold).
+    pub qdd: Joints<T>,
+    /// `p_d - p` in the base frame (m) (zero in a hold: not evaluated).
+    pub position_error: Vector3<T>,
+    /// `log(R_d R^T)` in the base frame (rad) (zero in a hold).
+    pub orientation_error: Vector3<T>,
+    /// `|det J|` at this step (zero in a hold).
+    pub manipulability: T,
+    /// Damping `lambda^2` used in the Jacobian solve (0 away from singularities).
+    pub damping_squared: T,
+    /// True if at least one torque was clipped to its limit.
+    pub saturated: bool,
+    /// `Some(error)` if the law could not be evaluated and the output is the
+    /// gravity-compensating hold instead.
+    pub fallback: Option<ControlError>,
+}
+
+/// Task-space computed-torque controller with integral action.
+///
+/// State: the integrated task error (for `Ki`) and the last joint position
+/// that was finite (so the gravity hold has a configuration to hold even when
+/// the measurement itself is NaN).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TaskSpaceController<T: RealField + Copy> {
+    config: ControllerConfig<T>,
+    error_integral: Vector6<T>,
+    last_finite_q: Option<Joints<T>>,
+}
+
+fn all_finite<T: RealField + Copy, const N: usize>(v: &nalgebra::SVector<T, N>) -> bool {
+    v.iter().all(|x| x.is_finite())
+}
+
+fn pose_is_finite<T: RealField + Copy>(pose: &Isometry3<T>) -> bool {
+    all_finite(&pose.translation.vector) && all_finite(&pose.rotation.coords)
+}
+
+impl<T: RealField + Copy> TaskSpaceController<T> {
+    /// A controller with zero integral state; the configuration is validated.
+    pub fn new(config: ControllerConfig<T>) -> Result<Self, ControlError> {
+        config.validate()?;
+        Ok(Self {
+            config,
+            error_integral: Vector6::zeros(),
+            last_finite_q: None,
+        })
+    }
+
+    /// The configuration in use.
+    pub fn config(&self) -> &ControllerConfig<T> {
+        &self.config
+    }
+
+    /// Integrated task error `[int e_p; int e_o]`.
+    pub fn error_integral(&self) -> &Vector6<T> {
+        &self.error_integral
+    }
+
+    /// Clears the integral state (e.g. when a new trajectory starts).
+    pub fn reset(&mut self) {
+        self.error_integral = Vector6::zeros();
+    }
+
+    /// One control step: never returns NaN torques.
+    ///
+    /// If the law cannot be evaluated (NaN input, non-finite model output),
+    /// the output is the saturated gravity torque at the last finite `q`
+    /// (zero torque if there never was one), the integral is left untouched
+    /// and [`ControlOutput::fallback`] says why.
+    pub fn step<M: TaskSpaceModel<T>>(
+        &mut self,
+        model: &M,
+        q: &Joints<T>,
+        qd: &Joints<T>,
+        reference: &TaskReference<T>,
+        dt: T,
+    ) -> ControlOutput<T> {
+        match self.track(model, q, qd, reference, dt) {
+            Ok(output) => output,
+            Err(error) => self.hold(model, q, error),
+        }
+    }
+
+    /// Eq 23 with integral action; fails without touching the state.
+    fn track<M: TaskSpaceModel<T>>(
+        &mut self,
+        model: &M,
+        q: &Joints<T>,
+        qd: &Joints<T>,
+        reference: &TaskReference<T>,
+        dt: T,
+    ) -> Result<ControlOutput<T>, ControlError> {
+        check_inputs(q, qd, reference, dt)?;
+        self.last_finite_q = Some(*q);
+
+        let configuration = model.configuration(q);
+        let TaskKinematics {
+            base_from_flange,
+            jacobian,
+            jacobian_dot_qd: jdot_qd,
+        } = model.task_kinematics(&configuration, qd);
+        if !pose_is_finite(&base_from_flange) {
+            return Err(ControlError::NonFiniteResult(
+                ControlStage::ForwardKinematics,
+            ));
+        }
+        if !jacobian.iter().all(|x| x.is_finite()) || !all_finite(&jdot_qd) {
+            return Err(ControlError::NonFiniteResult(ControlStage::Jacobian));
+        }
+
+        let position_error =
+            reference.base_from_flange.translation.vector - base_from_flange.translation.vector;
+        let orientation_error = orientation_error(
+            &reference.base_from_flange.rotation,
+            &base_from_flange.rotation,
+        );
+        let error = Vector6::new(
+            position_error.x,
+            position_error.y,
+            position_error.z,
+            orientation_error.x,
+            orientation_error.y,
+            orientation_error.z,
+        );
+        let error_rate = reference.twist - jacobian * qd;
+        let integral = self.integrate(&error, dt);
+
+        // Eq 23's outer loop, `a = Yd_ddot + Kv e_dot + Kp e (+ Ki int e)`,
+        // with one gain set for the position rows and one for the orientation rows.
+        let (gp, go) = (&self.config.gains.position, &self.config.gains.orientation);
+        let kp = per_row(gp.kp, go.kp);
+        let kd = per_row(gp.kd, go.kd);
+        let ki = per_row(gp.ki, go.ki);
+        let commanded_acceleration = reference.acceleration
+            + kd.component_mul(&error_rate)
+            + kp.component_mul(&error)
+            + ki.component_mul(&integral);
+
+        let solution = solve_damped(
+            &jacobian,
+            &(commanded_acceleration - jdot_qd),
+            &self.config.damping,
+        )?;
+        if !all_finite(&solution.x) {
+            return Err(ControlError::NonFiniteResult(
+                ControlStage::JointAccelerationSolve,
+            ));
+        }
+        let tau_unsaturated = model.inverse_dynamics(&configuration, qd, &solution.x);
+        if !all_finite(&tau_unsaturated) {
+            return Err(ControlError::NonFiniteResult(ControlStage::InverseDynamics));
+        }
+        let (tau, saturated) = saturate(&tau_unsaturated, &model.torque_limits());
+
+        // Anti-windup by conditional integration: while a torque is clipped the
+        // integrator would only wind up, so its state is frozen.
+        if !saturated {
+            self.error_integral = integral;
+        }
+        Ok(ControlOutput {
+            tau,
+            qdd: solution.x,
+            position_error,
+            orientation_error,
+            manipulability: solution.manipulability,
+            damping_squared: solution.damping_squared,
+            saturated,
+            fallback: None,
+        })
+    }
+
+    /// The integral after this step, clamped per component (anti-windup).
+    fn integrate(&self, error: &Vector6<T>, dt: T) -> Vector6<T> {
+        let (gp, go) = (&self.config.gains.position, &self.config.gains.orientation);
+        if gp.ki == T::zero() && go.ki == T::zero() {
+            return self.error_integral;
+        }
+        let (lp, lo) = (
+            self.config.position_integral_limit,
+            self.config.orientation_integral_limit,
+        );
+        Vector6::from_fn(|row, _| {
+            let limit = if row < 3 { lp } else { lo };
+            let previous = self
+                .error_integral
+                .get(row)
+                .copied()
+                .unwrap_or_else(T::zero);
+            let increment = error.get(row).copied().unwrap_or_else(T::zero) * dt;
+            (previous + increment).max(-limit).min(limit)
+        })
+    }
+
+    /// Gravity-compensating hold at the last finite configuration.
+    fn hold<M: TaskSpaceModel<T>>(
+        &self,
+        model: &M,
+        q: &Joints<T>,
+        cause: ControlError,
+    ) -> ControlOutput<T> {
+        let hold_q = if all_finite(q) {
+            Some(*q)
+        } else {
+            self.last_finite_q
+        };
+        let gravity = hold_q
+            .map(|q| model.gravity_torque(&q))
+            .filter(all_finite)
+            .unwrap_or_else(Joints::zeros);
+        let (tau, saturated) = saturate(&gravity, &model.torque_limits());
+        ControlOutput {
+            tau,
+            qdd: Joints::zeros(),
+            position_error: Vector3::zeros(),
+            orientation_error: Vector3::zeros(),
+            manipulability: T::zero(),
+            damping_squared: T::zero(),
+            saturated,
+            fallback: Some(cause),
+        }
+    }
+}
+
+/// `[position; position; position; orientation; orientation; orientation]`.
+fn per_row<T: RealField + Copy>(position: T, orientation: T) -> Vector6<T> {
+    Vector6::new(
+        position,
+        position,
+        position,
+        orientation,
+        orientation,
+        orientation,
+    )
+}
+
+fn check_inputs<T: RealField + Copy>(
+    q: &Joints<T>,
+    qd: &Joints<T>,
+    reference: &TaskReference<T>,
+    dt: T,
+) -> Result<(), ControlError> {
+    let fail = |input| Err(ControlError::NonFiniteInput(input));
+    if !dt.is_finite() {
+        return fail(ControlInput::Period);
+    }
+    if dt <= T::zero() {
+        return Err(ControlError::NonPositivePeriod);
+    }
+    if !all_finite(q) {
+        return fail(ControlInput::JointPosition);
+    }
+    if !all_finite(qd) {
+        return fail(ControlInput::JointVelocity);
+    }
+    if !pose_is_finite(&reference.base_from_flange) {
+        return fail(ControlInput::DesiredPose);
+    }
+    if !all_finite(&reference.twist) {
+        return fail(ControlInput::DesiredTwist);
+    }
+    if !all_finite(&reference.acceleration) {
+        return fail(ControlInput::DesiredAcceleration);
+    }
+    Ok(())
+}
+
+/// Clips each torque to `[-limit, limit]`; a non-finite limit clips to zero.
+fn saturate<T: RealField + Copy>(tau: &Joints<T>, limits: &Joints<T>) -> (Joints<T>, bool) {
+    let mut saturated = false;
+    let clipped = tau.zip_map(limits, |t, limit| {
+        let limit = if limit.is_finite() {
+            limit.abs()
+        } else {
+            T::zero()
+        };
+        let c = t.max(-limit).min(limit);
+        if c != t {
+            saturated = true;
+        }
+        c
+    });
+    (clipped, saturated)
+}
