@@ -8,6 +8,7 @@ use super::config::CalibrationConfig;
 use super::conic::{Conic, ConicFit};
 use super::effector::{depth_roots, wrap_angle, BaseFromDiscFit, DepthRoots};
 use super::error::CalibrationError;
+use super::homography::{pose_from_plane, PlanePoint, PlanePose};
 use super::model::WorkcellModel;
 use super::part::{intersect_two_lines, line_residual, FeatureSystem, VirtualGeometry};
 use super::pinhole::Pinhole;
@@ -514,13 +515,32 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
     /// The starting point of the refinement: robust virtual rotation, all-frame Eq 8 and
     /// all-sighting Eq 15.
     fn initial_model(&self) -> Result<WorkcellModel, CalibrationError> {
-        let conic = self.robust_conic()?;
-        let centre = self.robust_centre_ray()?;
-        let rotation = VirtualRotation::from_conic(&conic, centre, self.header.reference_radius_m)?;
         self.check_rotation_span()?;
-        let gamma = self.disc_axis_angle(&rotation, false)?;
-        let geometry = VirtualGeometry { rotation, gamma };
-        let (disc_from_camera, camera_centre_disc) = disc_from_virtual(&rotation, gamma);
+        let geometry = match self.plane_pose() {
+            Ok(pose) => VirtualGeometry {
+                rotation: VirtualRotation::from_pose(
+                    &pose.disc_from_camera,
+                    &pose.camera_centre_disc,
+                    self.header.reference_radius_m,
+                )?,
+                gamma: 0.0,
+            },
+            Err(CalibrationError::CameraBelowDisc) => {
+                return Err(CalibrationError::CameraBelowDisc)
+            }
+            // The homography could not be had: the paper's virtual rotation, whose errors
+            // (degenerate or non-elliptic conic, ...) then say what is wrong with the data.
+            Err(_) => {
+                let conic = self.robust_conic()?;
+                let centre = self.robust_centre_ray()?;
+                let rotation =
+                    VirtualRotation::from_conic(&conic, centre, self.header.reference_radius_m)?;
+                let gamma = self.disc_axis_angle(&rotation, false)?;
+                VirtualGeometry { rotation, gamma }
+            }
+        };
+        let (disc_from_camera, camera_centre_disc) =
+            disc_from_virtual(&geometry.rotation, geometry.gamma);
         let features = self.locate_features(&geometry)?;
         let (base_yaw, base_translation) = self.locate_base(&geometry)?;
         Ok(WorkcellModel {
@@ -531,6 +551,27 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
             base_yaw,
             base_translation,
         })
+    }
+
+    /// Camera pose from the disc-plane homography of the centre and reference detections.
+    fn plane_pose(&self) -> Result<PlanePose, CalibrationError> {
+        let radius = self.header.reference_radius_m;
+        let pinhole = self.pinhole;
+        let points = || {
+            self.frames.items().iter().flat_map(move |frame| {
+                let (s, c) = libm::sincos(frame.theta);
+                let centre = frame.centre.map(|px| PlanePoint {
+                    disc_xy: Vector2::zeros(),
+                    ray: pinhole.ray(to_vector(px)),
+                });
+                let reference = frame.reference.map(|px| PlanePoint {
+                    disc_xy: Vector2::new(radius * c, radius * s),
+                    ray: pinhole.ray(to_vector(px)),
+                });
+                centre.into_iter().chain(reference)
+            })
+        };
+        pose_from_plane(points, self.pinhole.f_px, 4.0 * self.config.pixel_sigma)
     }
 
     /// Eq 8 over all frames for every feature, twice: the second pass drops frames whose

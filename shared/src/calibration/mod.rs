@@ -5,6 +5,7 @@
 //! One concept per module:
 //! - [`conic`]: Step 2, recursive least-squares ellipse fit with normalisation.
 //! - [`virtual_rotation`]: Steps 1, 3, 4 (`R_k`, `R_z`, `R_y`), camera height and pose.
+//! - [`homography`]: beyond the paper, a theta-aware start that also works on short arcs.
 //! - [`part`]: Eqs 3 to 8, feature points with heights by least squares over all frames.
 //! - [`effector`]: Eqs 10 to 15, end-effector depths and `base_from_disc`.
 //! - [`model`], [`pinhole`]: the workcell model and the contract's camera.
@@ -17,6 +18,7 @@ pub mod config;
 pub mod conic;
 pub mod effector;
 pub mod error;
+pub mod homography;
 pub mod model;
 pub mod part;
 pub mod pinhole;
