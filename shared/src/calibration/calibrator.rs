@@ -1,6 +1,7 @@
 //! The fixed-memory incremental self-calibrator: absorbs frames one at a time and
 //! produces the paper's estimate (Section 2 and 3) or the refined maximum-likelihood one.
 
+use super::exceeds;
 use heapless::Vec as HVec;
 use nalgebra::{Rotation3, Vector2, Vector3};
 
@@ -194,7 +195,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
                 .zip(b1.iter())
                 .map(|(a, b)| (a - b) * (a - b))
                 .sum();
-            if !(distance_squared > 1e-12) {
+            if !exceeds(distance_squared, 1e-12) {
                 return Err(CalibrationError::CoincidingEffectorPoints { frame: index });
             }
         }
@@ -227,10 +228,11 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
     /// The paper's own method for comparison: the virtual rotation from the RLS conic and the
     /// mean centre image, Eq 8 with two frames, Eq 15 with one robot pose.
     pub fn paper_estimate(&self) -> Result<CalibrationResult, CalibrationError> {
+        self.check_reference_count()?;
+        self.check_rotation_span()?;
         let conic = self.conic.solve()?;
         let centre = self.mean_centre_ray(None)?;
         let rotation = VirtualRotation::from_conic(&conic, centre, self.header.reference_radius_m)?;
-        self.check_rotation_span()?;
         let gamma = self.disc_axis_angle(&rotation, true)?;
         let geometry = VirtualGeometry { rotation, gamma };
         let (disc_from_camera, camera_centre_disc) = disc_from_virtual(&rotation, gamma);
@@ -418,6 +420,25 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         Ok(conic)
     }
 
+    /// Five reference detections at least: the conic of Step 2 has five degrees of freedom,
+    /// and the homography needs four points besides the centre.
+    fn check_reference_count(&self) -> Result<(), CalibrationError> {
+        let found = self
+            .frames
+            .items()
+            .iter()
+            .filter(|f| f.reference.is_some())
+            .count();
+        if found < 5 {
+            return Err(CalibrationError::TooFewObservations {
+                what: "reference point images",
+                needed: 5,
+                found: u32::try_from(found).unwrap_or(u32::MAX),
+            });
+        }
+        Ok(())
+    }
+
     fn check_rotation_span(&self) -> Result<(), CalibrationError> {
         let mut lowest = f64::INFINITY;
         let mut highest = f64::NEG_INFINITY;
@@ -515,6 +536,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
     /// The starting point of the refinement: robust virtual rotation, all-frame Eq 8 and
     /// all-sighting Eq 15.
     fn initial_model(&self) -> Result<WorkcellModel, CalibrationError> {
+        self.check_reference_count()?;
         self.check_rotation_span()?;
         let geometry = match self.plane_pose() {
             Ok(pose) => VirtualGeometry {

@@ -5,6 +5,7 @@
 //! uses theta, so a quarter revolution (where an ellipse fit to the bare arc is poorly
 //! conditioned) still fixes the pose. Gross outliers are removed by iterated gating.
 
+use super::exceeds;
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, SymmetricEigen, Vector2, Vector3};
 
 use super::error::CalibrationError;
@@ -38,7 +39,7 @@ fn normaliser(points: impl Iterator<Item = Vector2<f64>> + Clone) -> Option<Matr
     }
     let mean = sum / count;
     let spread = points.map(|p| (p - mean).norm_squared()).sum::<f64>() / count;
-    if !(spread > 1e-24) {
+    if !exceeds(spread, 1e-24) {
         return None;
     }
     let scale = libm::sqrt(2.0 / spread);
@@ -116,6 +117,14 @@ fn fit<I: Iterator<Item = PlanePoint> + Clone>(
         .ok_or(failure)?;
     let h: Vector9 = eigen.eigenvectors.column(smallest).into_owned();
     let normalised = Matrix3::from_row_slice(h.as_slice());
+    // A camera off the disc plane sees it through a non-singular homography; a (near)
+    // singular one maps the disc onto a line (collinear or inconsistent detections).
+    if !exceeds(
+        libm::fabs(normalised.determinant()),
+        1e-6 * libm::pow(normalised.norm(), 3.0),
+    ) {
+        return Err(failure);
+    }
     let ray_denorm = ray_norm.try_inverse().ok_or(failure)?;
     let homography = ray_denorm * normalised * disc_norm;
     if homography.iter().all(|v| v.is_finite()) {
@@ -164,12 +173,19 @@ pub fn pose_from_plane<I: Iterator<Item = PlanePoint> + Clone>(
     if inliers * 4 < total * 3 {
         return Err(failure);
     }
+    // Every disc point seen must lie in front of the camera, on the same side of the
+    // homography's vanishing line as the disc centre.
+    let depth = |p: &PlanePoint| (homography * Vector3::new(p.disc_xy.x, p.disc_xy.y, 1.0)).z;
+    let centre_depth = homography.m33;
+    if points().any(|p| depth(&p) * centre_depth <= 0.0) {
+        return Err(failure);
+    }
     // ray ~ [r1 r2 t] (X, Y, 1): columns of camera_from_disc and its translation, up to scale.
     let h1: Vector3<f64> = homography.column(0).into_owned();
     let h2: Vector3<f64> = homography.column(1).into_owned();
     let h3: Vector3<f64> = homography.column(2).into_owned();
     let norm = (h1.norm() + h2.norm()) / 2.0;
-    if !(norm > 0.0) {
+    if !exceeds(norm, 0.0) {
         return Err(failure);
     }
     // The disc centre is in front of the camera: t.z > 0.

@@ -27,6 +27,11 @@ pub mod refine;
 pub mod store;
 pub mod virtual_rotation;
 
+/// `value > threshold`, false for NaN: `!exceeds(x, t)` rejects NaN along with small values.
+pub(crate) fn exceeds(value: f64, threshold: f64) -> bool {
+    value > threshold
+}
+
 pub use calibrator::{FirmwareCalibrator, HostCalibrator, SelfCalibrator};
 pub use config::CalibrationConfig;
 pub use error::{CalibrationError, ConicKind};

@@ -6,6 +6,7 @@
 //! `H = f L / l` with `l` in pixels), and a point at height `h` above the disc lies at depth
 //! `H - h` in the virtual camera (Eq 12).
 
+use super::exceeds;
 use nalgebra::{Matrix3, Rotation3, Vector2, Vector3};
 
 use super::conic::Conic;
@@ -78,7 +79,7 @@ impl VirtualRotation {
         }
         let centre_virtual = Vector2::new(-circle.m13 / a, -circle.m23 / a);
         let radius_squared = centre_virtual.norm_squared() - circle.m33 / a;
-        if !(radius_squared > 0.0) {
+        if !exceeds(radius_squared, 0.0) {
             return Err(numerical);
         }
         let radius = libm::sqrt(radius_squared);
@@ -139,7 +140,7 @@ impl VirtualRotation {
 /// The root of `p t^2 + q t + r = 0` whose arctangent is nearest `target` (radians).
 fn closest_root(p: f64, q: f64, r: f64, target: f64) -> Option<f64> {
     let discriminant = q * q - 4.0 * p * r;
-    if !(discriminant >= 0.0) || p == 0.0 {
+    if discriminant.is_nan() || discriminant < 0.0 || p == 0.0 {
         return None;
     }
     let root = libm::sqrt(discriminant);
