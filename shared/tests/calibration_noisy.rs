@@ -317,3 +317,44 @@ fn per_seed_listing() {
         }
     }
 }
+
+#[test]
+fn reported_standard_deviations_match_the_actual_errors() {
+    // Normalised errors (error / reported sigma) must have an RMS near 1 over many workcells.
+    let (mut height, mut yaw, mut base_x, mut part_z) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for seed in 200..260 {
+        let mut rng = Rng::new(seed);
+        let scenario = Scenario::paper();
+        let workcell = Workcell::random(&mut rng, scenario.feature_count, false);
+        let frames = workcell.record(&mut rng, &scenario);
+        let mut calibrator =
+            HostCalibrator::new(&workcell.header(), CalibrationConfig::default()).unwrap();
+        frames
+            .iter()
+            .for_each(|frame| calibrator.push(frame).unwrap());
+        let (result, sigma) = calibrator.estimate_with_uncertainty().unwrap();
+        height
+            .push((result.camera.height_m - workcell.camera_centre_disc.z) / sigma.camera_height_m);
+        let yaw_error = (result.base_from_disc.yaw_rad - workcell.base_yaw)
+            .sin()
+            .asin();
+        yaw.push(yaw_error / sigma.base_yaw_rad);
+        base_x.push(
+            (result.base_from_disc.translation_m[0] - workcell.base_translation.x)
+                / sigma.base_translation_m[0],
+        );
+        let true_mean_z = workcell.features_rotating.iter().map(|f| f.z).sum::<f64>() / 3.0;
+        part_z.push((result.part.position_m[2] - true_mean_z) / sigma.part_position_m[2]);
+    }
+    for (name, values) in [
+        ("height", height),
+        ("base yaw", yaw),
+        ("base x", base_x),
+        ("part z", part_z),
+    ] {
+        let rms = (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt();
+        eprintln!("{name}: RMS of normalised error {rms:.2}");
+        assert!((0.6..1.6).contains(&rms), "{name}: {rms}");
+    }
+}

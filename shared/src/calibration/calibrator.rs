@@ -16,6 +16,7 @@ use super::pinhole::Pinhole;
 use super::records::{to_f32, to_vector, EffectorRecord, FrameRecord, PixelF32};
 use super::refine::{refine, Problem};
 use super::store::ThinningStore;
+use super::uncertainty::EstimateUncertainty;
 use super::virtual_rotation::{disc_from_virtual, VirtualRotation};
 use crate::observation::{
     BaseFromDisc, CalibrationQuality, CalibrationResult, CameraEstimate, LogHeader,
@@ -219,10 +220,30 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
 
     /// The refined (maximum-likelihood) estimate from everything absorbed so far.
     pub fn estimate(&mut self) -> Result<CalibrationResult, CalibrationError> {
+        self.estimate_with_uncertainty().map(|(result, _)| result)
+    }
+
+    /// [`SelfCalibrator::estimate`] with the standard deviations of its parameters (from the
+    /// Gauss-Newton covariance at the optimum, scaled by the measured reprojection noise).
+    pub fn estimate_with_uncertainty(
+        &mut self,
+    ) -> Result<(CalibrationResult, EstimateUncertainty), CalibrationError> {
         let initial = self.initial_model()?;
         let problem = self.problem();
         let refined = refine(&problem, initial, &self.config)?;
-        Ok(self.result(&refined.model, refined.rms_px, refined.outliers))
+        let uncertainty = refined
+            .covariance
+            .as_ref()
+            .map(|covariance| {
+                EstimateUncertainty::from_covariance(covariance, self.header.part_feature_count)
+            })
+            .ok_or(CalibrationError::NumericalFailure {
+                stage: "covariance of the estimate",
+            })?;
+        Ok((
+            self.result(&refined.model, refined.rms_px, refined.outliers),
+            uncertainty,
+        ))
     }
 
     /// The paper's own method for comparison: the virtual rotation from the RLS conic and the

@@ -10,6 +10,7 @@
 //! - [`effector`]: Eqs 10 to 15, end-effector depths and `base_from_disc`.
 //! - [`model`], [`pinhole`]: the workcell model and the contract's camera.
 //! - [`refine`]: robust Levenberg-Marquardt bundle adjustment (maximum likelihood).
+//! - [`uncertainty`]: standard deviations of the refined estimate.
 //! - [`store`], [`records`]: bounded, thinned storage of observations.
 //! - [`calibrator`]: [`SelfCalibrator`], the incremental estimator tying it together.
 
@@ -25,6 +26,7 @@ pub mod pinhole;
 pub mod records;
 pub mod refine;
 pub mod store;
+pub mod uncertainty;
 pub mod virtual_rotation;
 
 /// `value > threshold`, false for NaN: `!exceeds(x, t)` rejects NaN along with small values.
@@ -35,3 +37,4 @@ pub(crate) fn exceeds(value: f64, threshold: f64) -> bool {
 pub use calibrator::{FirmwareCalibrator, HostCalibrator, SelfCalibrator};
 pub use config::CalibrationConfig;
 pub use error::{CalibrationError, ConicKind};
+pub use uncertainty::EstimateUncertainty;
