@@ -251,12 +251,15 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
     }
 
     /// The paper's own method for comparison: the virtual rotation from the RLS conic and the
-    /// mean centre image, Eq 8 with two frames, Eq 15 with one robot pose.
+    /// mean centre image (both with gross outliers gated out), Eq 8 with two frames, Eq 15
+    /// with one robot pose.
     pub fn paper_estimate(&self) -> Result<CalibrationResult, CalibrationError> {
         self.check_reference_count()?;
         self.check_rotation_span()?;
-        let conic = self.conic.solve()?;
-        let centre = self.mean_centre_ray(None)?;
+        // The RLS conic and mean centre image, with gross outliers gated out first (the
+        // paper's data had none; without the gate one stray detection can spoil Step 2).
+        let conic = self.robust_conic()?;
+        let centre = self.robust_centre_ray()?;
         let rotation = VirtualRotation::from_conic(&conic, centre, self.header.reference_radius_m)?;
         let gamma = self.disc_axis_angle(&rotation, true)?;
         let geometry = VirtualGeometry { rotation, gamma };
@@ -411,36 +414,69 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         Ok(centre_ray)
     }
 
-    /// Re-fits the conic on the stored reference points without gross outliers (Sampson
-    /// distance gating around the RLS conic), keeping the RLS answer when that fails.
+    /// Re-fits the conic on the stored reference points without gross outliers. The start is
+    /// the best of a few exact five-point conics through detections spread evenly along the
+    /// track (a deterministic consensus search: one stray detection far from the ellipse
+    /// drags an algebraic fit badly, a five-point fit through clean points not at all), or the
+    /// RLS conic when those fail; then Sampson-distance gating and refitting.
     fn robust_conic(&self) -> Result<Conic, CalibrationError> {
-        let mut conic = self.conic.solve()?;
-        let floor = 4.0 * self.config.pixel_sigma;
-        for _ in 0..4 {
-            let mut squares = 0.0;
-            let mut count = 0u32;
-            for reference in self.frames.items().iter().filter_map(|f| f.reference) {
-                let distance = conic.sampson_distance(self.pinhole.ray(to_vector(reference)))
-                    * self.pinhole.f_px;
-                squares += distance * distance;
-                count += 1;
-            }
-            if count < 5 {
-                break;
-            }
-            let rms = libm::sqrt(squares / f64::from(count));
-            let gate = (3.5 * rms).max(floor);
-            let mut fit = ConicFit::new();
-            for reference in self.frames.items().iter().filter_map(|f| f.reference) {
-                let ray = self.pinhole.ray(to_vector(reference));
-                if conic.sampson_distance(ray) * self.pinhole.f_px <= gate {
-                    fit.add(ray, 1.0);
+        let rls = self.conic.solve();
+        let rays = || {
+            self.frames
+                .items()
+                .iter()
+                .filter_map(|f| f.reference)
+                .map(|pixel| self.pinhole.ray(to_vector(pixel)))
+        };
+        let count = rays().count();
+        let f_px = self.pinhole.f_px;
+        let consensus_gate_px = (4.0 * self.config.pixel_sigma).max(2.0);
+        let support = |conic: &Conic| {
+            rays()
+                .filter(|ray| conic.sampson_distance(*ray) * f_px <= consensus_gate_px)
+                .count()
+        };
+        let mut best: Option<(usize, Conic)> =
+            rls.as_ref().ok().map(|conic| (support(conic), *conic));
+        if count >= 10 {
+            const TRIALS: usize = 16;
+            let stride = (count / (5 * TRIALS)).max(1);
+            for trial in 0..TRIALS {
+                let mut fit = ConicFit::new();
+                for k in 0..5 {
+                    let index = (trial * stride + k * count / 5) % count;
+                    if let Some(ray) = rays().nth(index) {
+                        fit.add(ray, 1.0);
+                    }
+                }
+                if let Ok(candidate) = fit.solve() {
+                    let candidate_support = support(&candidate);
+                    if best.is_none_or(|(best_support, _)| candidate_support > best_support) {
+                        best = Some((candidate_support, candidate));
+                    }
                 }
             }
-            match fit.solve() {
-                Ok(next) => conic = next,
-                Err(_) => break,
+        }
+        // No usable start: the RLS conic's own error says what is wrong with the track.
+        let Some((_, mut conic)) = best else {
+            return rls;
+        };
+        let floor_px = 4.0 * self.config.pixel_sigma;
+        let mut gate_px = 2.0 * consensus_gate_px;
+        for _ in 0..4 {
+            let mut fit = ConicFit::new();
+            let (mut squares, mut kept) = (0.0, 0u32);
+            for ray in rays() {
+                let distance = conic.sampson_distance(ray) * f_px;
+                if distance <= gate_px {
+                    fit.add(ray, 1.0);
+                    squares += distance * distance;
+                    kept += 1;
+                }
             }
+            // The points the gate keeps are the track: if they form no ellipse, say so.
+            conic = fit.solve()?;
+            gate_px = (3.5 * libm::sqrt(squares / f64::from(kept.max(1)))).max(floor_px);
         }
         Ok(conic)
     }
