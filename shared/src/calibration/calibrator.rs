@@ -84,17 +84,29 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
                 field: "part_feature_count",
             });
         }
-        if !(config.pixel_sigma.is_finite() && config.pixel_sigma > 0.0) {
-            return Err(CalibrationError::InvalidHeader {
-                field: "config.pixel_sigma",
+        let positive = |value: f64| value.is_finite() && value > 0.0;
+        for (value, field) in [
+            (config.pixel_sigma, "pixel_sigma"),
+            (config.huber_k, "huber_k"),
+            (config.outlier_gate_sigma, "outlier_gate_sigma"),
+            (config.min_rotation_rad, "min_rotation_rad"),
+        ] {
+            if !positive(value) {
+                return Err(CalibrationError::InvalidConfig { field });
+            }
+        }
+        if config.max_iterations == 0 {
+            return Err(CalibrationError::InvalidConfig {
+                field: "max_iterations",
             });
         }
-        if let Some(height) = config.disc_height_in_base_m {
-            if !height.is_finite() {
-                return Err(CalibrationError::InvalidHeader {
-                    field: "config.disc_height_in_base_m",
-                });
-            }
+        if config
+            .disc_height_in_base_m
+            .is_some_and(|height| !height.is_finite())
+        {
+            return Err(CalibrationError::InvalidConfig {
+                field: "disc_height_in_base_m",
+            });
         }
         Ok(Self {
             header: *header,
