@@ -10,7 +10,7 @@ use super::conic::{Conic, ConicFit};
 use super::effector::{depth_roots, wrap_angle, BaseFromDiscFit, DepthRoots};
 use super::error::CalibrationError;
 use super::homography::{pose_from_plane, PlanePoint, PlanePose};
-use super::model::WorkcellModel;
+use super::model::{rotation_z, WorkcellModel};
 use super::part::{intersect_two_lines, line_residual, FeatureSystem, VirtualGeometry};
 use super::pinhole::Pinhole;
 use super::records::{to_f32, to_vector, EffectorRecord, FrameRecord, PixelF32};
@@ -53,6 +53,14 @@ pub struct SelfCalibrator<const FRAMES: usize, const EFFECTOR_FRAMES: usize> {
 pub type FirmwareCalibrator = SelfCalibrator<96, 16>;
 /// The host's instance: 1024 frames, 256 effector sightings (117 224 B on x86-64).
 pub type HostCalibrator = SelfCalibrator<1024, 256>;
+
+/// A sighting's two points in the disc frame, as far as Eq 10 decides them.
+enum SightingPoints {
+    Resolved([Vector3<f64>; 2]),
+    /// Two physically valid roots of Eq 10: both candidate pairs.
+    Ambiguous([[Vector3<f64>; 2]; 2]),
+    Invalid,
+}
 
 fn finite(pixel: &PixelPoint) -> bool {
     pixel.iter().all(|v| v.is_finite())
@@ -318,13 +326,13 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         let mut first_invalid = None;
         for (position, sighting) in self.effectors.items().iter().enumerate() {
             match self.sighting_disc_points(&geometry, sighting)? {
-                Some(pair) => {
+                SightingPoints::Resolved(pair) => {
                     for (p_disc, which) in pair.iter().zip(0..2) {
                         fit.add(*p_disc, sighting.base_point(which));
                     }
                     break;
                 }
-                None => {
+                SightingPoints::Ambiguous(_) | SightingPoints::Invalid => {
                     first_invalid.get_or_insert(position);
                 }
             }
@@ -579,31 +587,34 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         })
     }
 
-    /// Disc-frame positions of a sighting's two points (Eq 10, or the known disc height),
-    /// `None` when Eq 10 has no unique valid root.
+    /// Disc-frame positions of a sighting's two points (Eq 10, or the known disc height).
     fn sighting_disc_points(
         &self,
         geometry: &VirtualGeometry,
         sighting: &EffectorRecord,
-    ) -> Result<Option<[Vector3<f64>; 2]>, CalibrationError> {
+    ) -> Result<SightingPoints, CalibrationError> {
         let rotation = &geometry.rotation;
         let m0 =
             self.virtual_point(rotation, to_f32([sighting.pixel(0).x, sighting.pixel(0).y]))?;
         let m1 =
             self.virtual_point(rotation, to_f32([sighting.pixel(1).x, sighting.pixel(1).y]))?;
         let (b0, b1) = (sighting.base_point(0), sighting.base_point(1));
-        let depths = match self.config.disc_height_in_base_m {
+        let pair =
+            |(z0, z1): (f64, f64)| [geometry.disc_point(m0, z0), geometry.disc_point(m1, z1)];
+        Ok(match self.config.disc_height_in_base_m {
             // Experiment 2: heights above the disc are known, so depths are H - h directly.
-            Some(disc_height) => Some((
+            Some(disc_height) => SightingPoints::Resolved(pair((
                 rotation.height_m - (b0.z - disc_height),
                 rotation.height_m - (b1.z - disc_height),
-            )),
+            ))),
             None => match depth_roots(m0, m1, b1.z - b0.z, (b1 - b0).norm()) {
-                DepthRoots::Unique(z0, z1) => Some((z0, z1)),
-                DepthRoots::Ambiguous(_) | DepthRoots::None => None,
+                DepthRoots::Unique(z0, z1) => SightingPoints::Resolved(pair((z0, z1))),
+                DepthRoots::Ambiguous([first, second]) => {
+                    SightingPoints::Ambiguous([pair(first), pair(second)])
+                }
+                DepthRoots::None => SightingPoints::Invalid,
             },
-        };
-        Ok(depths.map(|(z0, z1)| [geometry.disc_point(m0, z0), geometry.disc_point(m1, z1)]))
+        })
     }
 
     /// The starting point of the refinement: robust virtual rotation, all-frame Eq 8 and
@@ -714,20 +725,23 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
     }
 
     /// Eq 15 over every sighting with a usable depth, least squares (see [`BaseFromDiscFit`]).
+    /// Sightings with two valid roots of Eq 10 join in a second pass, with the root whose
+    /// points agree better with the first pass's `base_from_disc`.
     fn locate_base(
         &self,
         geometry: &VirtualGeometry,
     ) -> Result<(f64, Vector3<f64>), CalibrationError> {
+        let known_height = self.config.disc_height_in_base_m;
         let mut fit = BaseFromDiscFit::default();
         let mut first_invalid = None;
         for (position, sighting) in self.effectors.items().iter().enumerate() {
             match self.sighting_disc_points(geometry, sighting)? {
-                Some(pair) => {
+                SightingPoints::Resolved(pair) => {
                     for (p_disc, which) in pair.iter().zip(0..2) {
                         fit.add(*p_disc, sighting.base_point(which));
                     }
                 }
-                None => {
+                SightingPoints::Ambiguous(_) | SightingPoints::Invalid => {
                     first_invalid.get_or_insert(position);
                 }
             }
@@ -735,7 +749,38 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         if fit.count() == 0 {
             return Err(self.no_effector_error(first_invalid));
         }
-        fit.solve(self.config.disc_height_in_base_m)
+        let (yaw, translation) = fit.solve(known_height)?;
+        let disc_from_base = |p_base: Vector3<f64>| rotation_z(-yaw) * (p_base - translation);
+        let mut resolved_more = false;
+        for sighting in self.effectors.items() {
+            if let SightingPoints::Ambiguous(candidates) =
+                self.sighting_disc_points(geometry, sighting)?
+            {
+                let miss = |pair: &[Vector3<f64>; 2]| -> f64 {
+                    pair.iter()
+                        .zip(0..2)
+                        .map(|(p_disc, which)| {
+                            (p_disc - disc_from_base(sighting.base_point(which))).norm()
+                        })
+                        .sum()
+                };
+                let [first, second] = candidates;
+                let best = if miss(&first) <= miss(&second) {
+                    first
+                } else {
+                    second
+                };
+                for (p_disc, which) in best.iter().zip(0..2) {
+                    fit.add(*p_disc, sighting.base_point(which));
+                }
+                resolved_more = true;
+            }
+        }
+        if resolved_more {
+            fit.solve(known_height)
+        } else {
+            Ok((yaw, translation))
+        }
     }
 
     fn rms_reprojection(&self, model: &WorkcellModel) -> f64 {
