@@ -2,3 +2,4 @@
 //! accuracy runs behind the `host-sim` binary's subcommands.
 
 pub mod log;
+pub mod workcell;

@@ -1,11 +1,33 @@
 //! `host-sim`: the simulated workcell and the tools around the controller.
-use clap::Parser;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use host_sim::workcell::command::{run_record, RecordArgs};
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
 #[derive(Parser, Debug)]
 #[command(version, about)]
-struct Cli {}
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
 
-fn main() {
-    let _cli = Cli::parse();
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Record a synthetic observation log (and LOG.truth.json) from a random workcell.
+    Record(RecordArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let outcome = match &cli.command {
+        Command::Record(args) => run_record(args),
+    };
+    match outcome {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("error: {error:#}");
+            ExitCode::FAILURE
+        }
+    }
 }

@@ -120,7 +120,11 @@ fn presence(present: bool) -> &'static str {
 impl fmt::Display for LogError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match &self.field {
-            Some(field) => write!(f, "line {}: field \"{}\": {}", self.line, field, self.problem),
+            Some(field) => write!(
+                f,
+                "line {}: field \"{}\": {}",
+                self.line, field, self.problem
+            ),
             None => write!(f, "line {}: {}", self.line, self.problem),
         }
     }

@@ -112,8 +112,11 @@ pub fn parse_frame(
         }
     }
     let conveyor_angle_rad = record.finite("conveyor_angle_rad", "conveyor_angle_rad")?;
-    let center_px =
-        fields::optional_pixel(line, "center_px", record.required("center_px", "center_px")?)?;
+    let center_px = fields::optional_pixel(
+        line,
+        "center_px",
+        record.required("center_px", "center_px")?,
+    )?;
     let reference_px = fields::optional_pixel(
         line,
         "reference_px",

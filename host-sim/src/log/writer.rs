@@ -46,6 +46,14 @@ fn to_value(line: usize, record: &impl Serialize) -> Result<Value, LogError> {
         .map_err(|e| LogError::new(line, LogProblem::InvalidJson(e.to_string())))
 }
 
+/// The record as one line of text, keys in the contract's order, with its newline.
+fn to_line(line: usize, record: &impl Serialize) -> Result<String, LogError> {
+    let mut text = serde_json::to_string(record)
+        .map_err(|e| LogError::new(line, LogProblem::InvalidJson(e.to_string())))?;
+    text.push('\n');
+    Ok(text)
+}
+
 fn io_error(line: usize) -> impl FnOnce(std::io::Error) -> LogError {
     move |e| LogError::new(line, LogProblem::Io(e))
 }
@@ -61,20 +69,17 @@ pub struct LogWriter<W: Write> {
 
 impl<W: Write> LogWriter<W> {
     pub fn new(mut output: W, header: &LogHeader) -> Result<Self, LogError> {
-        let value = to_value(
-            1,
-            &HeaderLine {
-                record_type: "header",
-                version: header.version,
-                camera: &header.camera,
-                reference_radius_m: header.reference_radius_m,
-                part_feature_count: header.part_feature_count,
-            },
-        )?;
-        let header = parse_header(1, &value)?;
-        serde_json::to_writer(&mut output, &value)
-            .map_err(|e| LogError::new(1, LogProblem::InvalidJson(e.to_string())))?;
-        output.write_all(b"\n").map_err(io_error(1))?;
+        let line = HeaderLine {
+            record_type: "header",
+            version: header.version,
+            camera: &header.camera,
+            reference_radius_m: header.reference_radius_m,
+            part_feature_count: header.part_feature_count,
+        };
+        let header = parse_header(1, &to_value(1, &line)?)?;
+        output
+            .write_all(to_line(1, &line)?.as_bytes())
+            .map_err(io_error(1))?;
         Ok(Self {
             output,
             header,
@@ -86,22 +91,23 @@ impl<W: Write> LogWriter<W> {
     /// Validates and appends one frame; on error nothing is written.
     pub fn write_frame(&mut self, frame: &ObservationFrame) -> Result<(), LogError> {
         let line = self.line + 1;
-        let value = to_value(
+        let record = FrameLine {
+            record_type: "frame",
+            t_s: frame.t_s,
+            conveyor_angle_rad: frame.conveyor_angle_rad,
+            center_px: frame.center_px,
+            reference_px: frame.reference_px,
+            part_px: frame.part_px.as_deref(),
+            effector_px: frame.effector.as_ref().map(|e| &e.px),
+            effector_base_m: frame.effector.as_ref().map(|e| &e.base_m),
+        };
+        parse_frame(
             line,
-            &FrameLine {
-                record_type: "frame",
-                t_s: frame.t_s,
-                conveyor_angle_rad: frame.conveyor_angle_rad,
-                center_px: frame.center_px,
-                reference_px: frame.reference_px,
-                part_px: frame.part_px.as_deref(),
-                effector_px: frame.effector.as_ref().map(|e| &e.px),
-                effector_base_m: frame.effector.as_ref().map(|e| &e.base_m),
-            },
+            &to_value(line, &record)?,
+            &self.header,
+            self.previous_t_s,
         )?;
-        parse_frame(line, &value, &self.header, self.previous_t_s)?;
-        let mut text = value.to_string();
-        text.push('\n');
+        let text = to_line(line, &record)?;
         self.output
             .write_all(text.as_bytes())
             .map_err(io_error(line))?;
