@@ -1,3 +1,30 @@
 //! Self-calibration from vision (paper Sections 2 and 3): conic fit of the reference
 //! point's image, virtual rotation, part localisation with heights, and the
-//! robot-base-to-disc transform.
+//! robot-base-to-disc transform, followed by a robust bundle adjustment.
+//!
+//! One concept per module:
+//! - [`conic`]: Step 2, recursive least-squares ellipse fit with normalisation.
+//! - [`virtual_rotation`]: Steps 1, 3, 4 (`R_k`, `R_z`, `R_y`), camera height and pose.
+//! - [`part`]: Eqs 3 to 8, feature points with heights by least squares over all frames.
+//! - [`effector`]: Eqs 10 to 15, end-effector depths and `base_from_disc`.
+//! - [`model`], [`pinhole`]: the workcell model and the contract's camera.
+//! - [`refine`]: robust Levenberg-Marquardt bundle adjustment (maximum likelihood).
+//! - [`store`], [`records`]: bounded, thinned storage of observations.
+//! - [`calibrator`]: [`SelfCalibrator`], the incremental estimator tying it together.
+
+pub mod calibrator;
+pub mod config;
+pub mod conic;
+pub mod effector;
+pub mod error;
+pub mod model;
+pub mod part;
+pub mod pinhole;
+pub mod records;
+pub mod refine;
+pub mod store;
+pub mod virtual_rotation;
+
+pub use calibrator::{FirmwareCalibrator, HostCalibrator, SelfCalibrator};
+pub use config::CalibrationConfig;
+pub use error::{CalibrationError, ConicKind};

@@ -1,0 +1,682 @@
+//! The fixed-memory incremental self-calibrator: absorbs frames one at a time and
+//! produces the paper's estimate (Section 2 and 3) or the refined maximum-likelihood one.
+
+use heapless::Vec as HVec;
+use nalgebra::{Rotation3, Vector2, Vector3};
+
+use super::config::CalibrationConfig;
+use super::conic::{Conic, ConicFit};
+use super::effector::{depth_roots, wrap_angle, BaseFromDiscFit, DepthRoots};
+use super::error::CalibrationError;
+use super::model::WorkcellModel;
+use super::part::{intersect_two_lines, line_residual, FeatureSystem, VirtualGeometry};
+use super::pinhole::Pinhole;
+use super::records::{to_f32, to_vector, EffectorRecord, FrameRecord, PixelF32};
+use super::refine::{refine, Problem};
+use super::store::ThinningStore;
+use super::virtual_rotation::{disc_from_virtual, VirtualRotation};
+use crate::observation::{
+    BaseFromDisc, CalibrationQuality, CalibrationResult, CameraEstimate, LogHeader,
+    ObservationFrame, PartEstimate, PixelPoint, RigidTransform, LOG_VERSION, MAX_PART_FEATURES,
+};
+
+/// Fixed-memory incremental estimator; `FRAMES` and `EFFECTOR_FRAMES` bound the stored
+/// observations (evenly thinned when more arrive; see [`ThinningStore`]).
+///
+/// `size_of` per instantiation (x86-64 and thumbv7em alike, f64 aligned to 8):
+/// about `320 + 104 * FRAMES + 40 * EFFECTOR_FRAMES` bytes — see [`FirmwareCalibrator`] and
+/// [`HostCalibrator`] and the test `calibrator_sizes_are_documented`.
+#[derive(Debug, Clone)]
+pub struct SelfCalibrator<const FRAMES: usize, const EFFECTOR_FRAMES: usize> {
+    header: LogHeader,
+    config: CalibrationConfig,
+    pinhole: Pinhole,
+    /// Step 2's recursive least-squares conic, fed with every reference detection.
+    conic: ConicFit,
+    frames: ThinningStore<FrameRecord, FRAMES>,
+    effectors: ThinningStore<EffectorRecord, EFFECTOR_FRAMES>,
+    /// Frames offered to `push` (accepted or not): numbers frames in errors.
+    offered: u32,
+    /// Accepted frames with at least one detection.
+    frames_used: u32,
+    last_t_s: Option<f64>,
+}
+
+/// The firmware's small instance: 96 frames, 16 effector sightings (~10.9 KiB).
+pub type FirmwareCalibrator = SelfCalibrator<96, 16>;
+/// The host's instance: 1024 frames, 256 effector sightings (~114 KiB).
+pub type HostCalibrator = SelfCalibrator<1024, 256>;
+
+fn finite(pixel: &PixelPoint) -> bool {
+    pixel.iter().all(|v| v.is_finite())
+}
+
+impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, EFFECTOR_FRAMES> {
+    pub fn new(header: &LogHeader, config: CalibrationConfig) -> Result<Self, CalibrationError> {
+        let camera = &header.camera;
+        if header.version != LOG_VERSION {
+            return Err(CalibrationError::InvalidHeader { field: "version" });
+        }
+        if !(camera.f_px.is_finite() && camera.f_px > 0.0) {
+            return Err(CalibrationError::InvalidHeader {
+                field: "camera.f_px",
+            });
+        }
+        if !(camera.cx.is_finite() && camera.cy.is_finite()) {
+            return Err(CalibrationError::InvalidHeader {
+                field: "camera.cx/cy",
+            });
+        }
+        if !(header.reference_radius_m.is_finite() && header.reference_radius_m > 0.0) {
+            return Err(CalibrationError::InvalidHeader {
+                field: "reference_radius_m",
+            });
+        }
+        if !(2..=MAX_PART_FEATURES).contains(&header.part_feature_count) {
+            return Err(CalibrationError::InvalidHeader {
+                field: "part_feature_count",
+            });
+        }
+        if !(config.pixel_sigma.is_finite() && config.pixel_sigma > 0.0) {
+            return Err(CalibrationError::InvalidHeader {
+                field: "config.pixel_sigma",
+            });
+        }
+        if let Some(height) = config.disc_height_in_base_m {
+            if !height.is_finite() {
+                return Err(CalibrationError::InvalidHeader {
+                    field: "config.disc_height_in_base_m",
+                });
+            }
+        }
+        Ok(Self {
+            header: *header,
+            config,
+            pinhole: Pinhole::new(camera),
+            conic: ConicFit::new(),
+            frames: ThinningStore::new(),
+            effectors: ThinningStore::new(),
+            offered: 0,
+            frames_used: 0,
+            last_t_s: None,
+        })
+    }
+
+    /// Validate and absorb one frame (RLS conic update etc.); a frame that is invalid
+    /// (NaN, wrong feature count, time going backwards, coinciding effector points) is
+    /// rejected with an error and leaves the estimator's observations unchanged (only the
+    /// count of offered frames, which numbers frames in errors, advances).
+    pub fn push(&mut self, frame: &ObservationFrame) -> Result<(), CalibrationError> {
+        let index = self.offered;
+        self.offered = self.offered.saturating_add(1);
+        let record = self.validate(index, frame)?;
+        self.last_t_s = Some(frame.t_s);
+        if let Some(reference) = frame.reference_px {
+            let [u, v] = reference;
+            self.conic.add(self.pinhole.ray(Vector2::new(u, v)), 1.0);
+        }
+        let detected =
+            record.centre.is_some() || record.reference.is_some() || record.part.is_some();
+        if let Some(sighting) = &frame.effector {
+            self.effectors
+                .offer(EffectorRecord::from_sighting(sighting));
+        }
+        if detected || frame.effector.is_some() {
+            self.frames_used = self.frames_used.saturating_add(1);
+        }
+        if detected {
+            self.frames.offer(record);
+        }
+        Ok(())
+    }
+
+    fn validate(
+        &self,
+        index: u32,
+        frame: &ObservationFrame,
+    ) -> Result<FrameRecord, CalibrationError> {
+        let non_finite = |field| CalibrationError::NonFiniteValue {
+            frame: index,
+            field,
+        };
+        if !frame.t_s.is_finite() {
+            return Err(non_finite("t_s"));
+        }
+        if !frame.conveyor_angle_rad.is_finite() {
+            return Err(non_finite("conveyor_angle_rad"));
+        }
+        if let Some(previous) = self.last_t_s {
+            if frame.t_s < previous {
+                return Err(CalibrationError::TimeWentBackwards {
+                    frame: index,
+                    t_s: frame.t_s,
+                    previous_t_s: previous,
+                });
+            }
+        }
+        if frame.center_px.as_ref().is_some_and(|p| !finite(p)) {
+            return Err(non_finite("center_px"));
+        }
+        if frame.reference_px.as_ref().is_some_and(|p| !finite(p)) {
+            return Err(non_finite("reference_px"));
+        }
+        let part = match &frame.part_px {
+            None => None,
+            Some(points) => {
+                if points.len() != self.header.part_feature_count {
+                    return Err(CalibrationError::WrongFeatureCount {
+                        frame: index,
+                        expected: self.header.part_feature_count,
+                        found: points.len(),
+                    });
+                }
+                let mut stored: [PixelF32; MAX_PART_FEATURES] = [[0.0; 2]; MAX_PART_FEATURES];
+                for (slot, point) in stored.iter_mut().zip(points.iter()) {
+                    if !finite(point) {
+                        return Err(non_finite("part_px"));
+                    }
+                    *slot = to_f32(*point);
+                }
+                Some(stored)
+            }
+        };
+        if let Some(sighting) = &frame.effector {
+            if !sighting.px.iter().all(finite) {
+                return Err(non_finite("effector_px"));
+            }
+            if !sighting.base_m.iter().flatten().all(|v| v.is_finite()) {
+                return Err(non_finite("effector_base_m"));
+            }
+            let [b0, b1] = sighting.base_m;
+            let distance_squared: f64 = b0
+                .iter()
+                .zip(b1.iter())
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum();
+            if !(distance_squared > 1e-12) {
+                return Err(CalibrationError::CoincidingEffectorPoints { frame: index });
+            }
+        }
+        Ok(FrameRecord {
+            theta: frame.conveyor_angle_rad,
+            centre: frame.center_px.map(to_f32),
+            reference: frame.reference_px.map(to_f32),
+            part,
+        })
+    }
+
+    /// Frames offered to `push` so far (accepted or rejected).
+    pub fn frames_offered(&self) -> u32 {
+        self.offered
+    }
+
+    /// The recursive least-squares conic of Step 2 over every reference detection so far.
+    pub fn conic(&self) -> Result<Conic, CalibrationError> {
+        self.conic.solve()
+    }
+
+    /// The refined (maximum-likelihood) estimate from everything absorbed so far.
+    pub fn estimate(&mut self) -> Result<CalibrationResult, CalibrationError> {
+        let initial = self.initial_model()?;
+        let problem = self.problem();
+        let refined = refine(&problem, initial, &self.config)?;
+        Ok(self.result(&refined.model, refined.rms_px, refined.outliers))
+    }
+
+    /// The paper's own method for comparison: the virtual rotation from the RLS conic and the
+    /// mean centre image, Eq 8 with two frames, Eq 15 with one robot pose.
+    pub fn paper_estimate(&self) -> Result<CalibrationResult, CalibrationError> {
+        let conic = self.conic.solve()?;
+        let centre = self.mean_centre_ray(None)?;
+        let rotation = VirtualRotation::from_conic(&conic, centre, self.header.reference_radius_m)?;
+        self.check_rotation_span()?;
+        let gamma = self.disc_axis_angle(&rotation, true)?;
+        let geometry = VirtualGeometry { rotation, gamma };
+        let (disc_from_camera, camera_centre_disc) = disc_from_virtual(&rotation, gamma);
+        // Eq 8 with two frames: the first showing the part and the one turned furthest from it.
+        let mut part_frames = self.frames.items().iter().filter(|f| f.part.is_some());
+        let first = part_frames
+            .next()
+            .ok_or(CalibrationError::TooFewObservations {
+                what: "frames showing the part",
+                needed: 2,
+                found: 0,
+            })?;
+        let second = part_frames
+            .max_by(|a, b| {
+                let spread = |f: &FrameRecord| 1.0 - libm::cos(f.theta - first.theta);
+                spread(a).total_cmp(&spread(b))
+            })
+            .ok_or(CalibrationError::TooFewObservations {
+                what: "frames showing the part",
+                needed: 2,
+                found: 1,
+            })?;
+        let mut features = [Vector3::zeros(); MAX_PART_FEATURES];
+        for (index, slot) in features
+            .iter_mut()
+            .enumerate()
+            .take(self.header.part_feature_count)
+        {
+            let line =
+                |frame: &FrameRecord| -> Result<(Vector2<f64>, Vector2<f64>), CalibrationError> {
+                    let pixel = frame.part.and_then(|part| part.get(index).copied()).ok_or(
+                        CalibrationError::NumericalFailure {
+                            stage: "part localisation",
+                        },
+                    )?;
+                    let m = self.virtual_point(&rotation, pixel)?;
+                    Ok(geometry.affine_line(frame.theta, m))
+                };
+            *slot = intersect_two_lines(line(first)?, line(second)?)?;
+        }
+        // Eq 15 with one robot pose: the first sighting with a usable depth.
+        let mut fit = BaseFromDiscFit::default();
+        let mut first_invalid = None;
+        for (position, sighting) in self.effectors.items().iter().enumerate() {
+            match self.sighting_disc_points(&geometry, sighting)? {
+                Some(pair) => {
+                    for (p_disc, which) in pair.iter().zip(0..2) {
+                        fit.add(*p_disc, sighting.base_point(which));
+                    }
+                    break;
+                }
+                None => {
+                    first_invalid.get_or_insert(position);
+                }
+            }
+        }
+        if fit.count() == 0 {
+            return Err(self.no_effector_error(first_invalid));
+        }
+        let (base_yaw, base_translation) = fit.solve(self.config.disc_height_in_base_m)?;
+        let model = WorkcellModel {
+            disc_from_camera,
+            camera_centre_disc,
+            features_rotating: features,
+            feature_count: self.header.part_feature_count,
+            base_yaw,
+            base_translation,
+        };
+        let rms = self.rms_reprojection(&model);
+        Ok(self.result(&model, rms, 0))
+    }
+
+    fn no_effector_error(&self, first_invalid: Option<usize>) -> CalibrationError {
+        match first_invalid {
+            Some(position) => CalibrationError::NoValidDepthRoot {
+                frame: u32::try_from(position).unwrap_or(u32::MAX),
+            },
+            None => CalibrationError::TooFewObservations {
+                what: "end-effector sightings",
+                needed: 1,
+                found: 0,
+            },
+        }
+    }
+
+    fn problem(&self) -> Problem<'_> {
+        Problem {
+            pinhole: self.pinhole,
+            frames: self.frames.items(),
+            effectors: self.effectors.items(),
+            feature_count: self.header.part_feature_count,
+            reference_radius_m: self.header.reference_radius_m,
+            fix_base_height: self.config.disc_height_in_base_m.is_some(),
+        }
+    }
+
+    fn virtual_point(
+        &self,
+        rotation: &VirtualRotation,
+        pixel: PixelF32,
+    ) -> Result<Vector2<f64>, CalibrationError> {
+        rotation
+            .to_virtual(self.pinhole.ray(to_vector(pixel)))
+            .ok_or(CalibrationError::NumericalFailure {
+                stage: "virtual rotation of an image point",
+            })
+    }
+
+    /// Mean image of the disc centre in ray coordinates; with `gate_px` only points within
+    /// that distance of the previous mean count (a robust re-estimate).
+    fn mean_centre_ray(
+        &self,
+        gate_px: Option<(Vector2<f64>, f64)>,
+    ) -> Result<Vector2<f64>, CalibrationError> {
+        let mut sum = Vector2::zeros();
+        let mut count = 0u32;
+        for centre in self.frames.items().iter().filter_map(|f| f.centre) {
+            let pixel = to_vector(centre);
+            if let Some((previous, gate)) = gate_px {
+                if (pixel - previous).norm() > gate {
+                    continue;
+                }
+            }
+            sum += pixel;
+            count += 1;
+        }
+        if count == 0 {
+            return Err(CalibrationError::TooFewObservations {
+                what: "disc centre images",
+                needed: 1,
+                found: 0,
+            });
+        }
+        Ok(self.pinhole.ray(sum / f64::from(count)))
+    }
+
+    /// The centre's image with gross outliers removed: re-centred mean within a shrinking gate.
+    fn robust_centre_ray(&self) -> Result<Vector2<f64>, CalibrationError> {
+        let mut centre_ray = self.mean_centre_ray(None)?;
+        let floor = 4.0 * self.config.pixel_sigma;
+        let mut gate = 64.0 * floor;
+        for _ in 0..6 {
+            let centre_px =
+                centre_ray * self.pinhole.f_px + Vector2::new(self.pinhole.cx, self.pinhole.cy);
+            match self.mean_centre_ray(Some((centre_px, gate))) {
+                Ok(ray) => centre_ray = ray,
+                Err(_) => break,
+            }
+            gate = (gate / 4.0).max(floor * 1.5);
+        }
+        Ok(centre_ray)
+    }
+
+    /// Re-fits the conic on the stored reference points without gross outliers (Sampson
+    /// distance gating around the RLS conic), keeping the RLS answer when that fails.
+    fn robust_conic(&self) -> Result<Conic, CalibrationError> {
+        let mut conic = self.conic.solve()?;
+        let floor = 4.0 * self.config.pixel_sigma;
+        for _ in 0..4 {
+            let mut squares = 0.0;
+            let mut count = 0u32;
+            for reference in self.frames.items().iter().filter_map(|f| f.reference) {
+                let distance = conic.sampson_distance(self.pinhole.ray(to_vector(reference)))
+                    * self.pinhole.f_px;
+                squares += distance * distance;
+                count += 1;
+            }
+            if count < 5 {
+                break;
+            }
+            let rms = libm::sqrt(squares / f64::from(count));
+            let gate = (3.5 * rms).max(floor);
+            let mut fit = ConicFit::new();
+            for reference in self.frames.items().iter().filter_map(|f| f.reference) {
+                let ray = self.pinhole.ray(to_vector(reference));
+                if conic.sampson_distance(ray) * self.pinhole.f_px <= gate {
+                    fit.add(ray, 1.0);
+                }
+            }
+            match fit.solve() {
+                Ok(next) => conic = next,
+                Err(_) => break,
+            }
+        }
+        Ok(conic)
+    }
+
+    fn check_rotation_span(&self) -> Result<(), CalibrationError> {
+        let mut lowest = f64::INFINITY;
+        let mut highest = f64::NEG_INFINITY;
+        for frame in self
+            .frames
+            .items()
+            .iter()
+            .filter(|f| f.reference.is_some() || f.part.is_some())
+        {
+            lowest = lowest.min(frame.theta);
+            highest = highest.max(frame.theta);
+        }
+        let span = if highest >= lowest {
+            highest - lowest
+        } else {
+            0.0
+        };
+        if span < self.config.min_rotation_rad {
+            return Err(CalibrationError::InsufficientRotation {
+                span_rad: span,
+                needed_rad: self.config.min_rotation_rad,
+            });
+        }
+        Ok(())
+    }
+
+    /// Image angle of the disc X axis in the virtual image. The reference point at angle
+    /// theta appears at image angle `gamma - theta` around the centre (the spec's
+    /// orientation); a resultant that fits `gamma + theta` better means the camera is below
+    /// the disc. `first_only` uses only the first reference detection (the paper's choice of
+    /// the initial reference line as X axis).
+    fn disc_axis_angle(
+        &self,
+        rotation: &VirtualRotation,
+        first_only: bool,
+    ) -> Result<f64, CalibrationError> {
+        let mut above = Vector2::zeros();
+        let mut below = Vector2::zeros();
+        let mut first = None;
+        for frame in self.frames.items() {
+            let Some(reference) = frame.reference else {
+                continue;
+            };
+            let m = self.virtual_point(rotation, reference)?;
+            let offset = m - rotation.centre_virtual;
+            let angle = libm::atan2(offset.y, offset.x);
+            let (sa, ca) = libm::sincos(angle + frame.theta);
+            let (sb, cb) = libm::sincos(angle - frame.theta);
+            above += Vector2::new(ca, sa);
+            below += Vector2::new(cb, sb);
+            first.get_or_insert(angle + frame.theta);
+        }
+        if below.norm() > above.norm() {
+            return Err(CalibrationError::CameraBelowDisc);
+        }
+        let gamma = if first_only {
+            first
+        } else {
+            Some(libm::atan2(above.y, above.x))
+        };
+        gamma.ok_or(CalibrationError::TooFewObservations {
+            what: "reference point images",
+            needed: 5,
+            found: 0,
+        })
+    }
+
+    /// Disc-frame positions of a sighting's two points (Eq 10, or the known disc height),
+    /// `None` when Eq 10 has no unique valid root.
+    fn sighting_disc_points(
+        &self,
+        geometry: &VirtualGeometry,
+        sighting: &EffectorRecord,
+    ) -> Result<Option<[Vector3<f64>; 2]>, CalibrationError> {
+        let rotation = &geometry.rotation;
+        let m0 =
+            self.virtual_point(rotation, to_f32([sighting.pixel(0).x, sighting.pixel(0).y]))?;
+        let m1 =
+            self.virtual_point(rotation, to_f32([sighting.pixel(1).x, sighting.pixel(1).y]))?;
+        let (b0, b1) = (sighting.base_point(0), sighting.base_point(1));
+        let depths = match self.config.disc_height_in_base_m {
+            // Experiment 2: heights above the disc are known, so depths are H - h directly.
+            Some(disc_height) => Some((
+                rotation.height_m - (b0.z - disc_height),
+                rotation.height_m - (b1.z - disc_height),
+            )),
+            None => match depth_roots(m0, m1, b1.z - b0.z, (b1 - b0).norm()) {
+                DepthRoots::Unique(z0, z1) => Some((z0, z1)),
+                DepthRoots::Ambiguous(_) | DepthRoots::None => None,
+            },
+        };
+        Ok(depths.map(|(z0, z1)| [geometry.disc_point(m0, z0), geometry.disc_point(m1, z1)]))
+    }
+
+    /// The starting point of the refinement: robust virtual rotation, all-frame Eq 8 and
+    /// all-sighting Eq 15.
+    fn initial_model(&self) -> Result<WorkcellModel, CalibrationError> {
+        let conic = self.robust_conic()?;
+        let centre = self.robust_centre_ray()?;
+        let rotation = VirtualRotation::from_conic(&conic, centre, self.header.reference_radius_m)?;
+        self.check_rotation_span()?;
+        let gamma = self.disc_axis_angle(&rotation, false)?;
+        let geometry = VirtualGeometry { rotation, gamma };
+        let (disc_from_camera, camera_centre_disc) = disc_from_virtual(&rotation, gamma);
+        let features = self.locate_features(&geometry)?;
+        let (base_yaw, base_translation) = self.locate_base(&geometry)?;
+        Ok(WorkcellModel {
+            disc_from_camera,
+            camera_centre_disc,
+            features_rotating: features,
+            feature_count: self.header.part_feature_count,
+            base_yaw,
+            base_translation,
+        })
+    }
+
+    /// Eq 8 over all frames for every feature, twice: the second pass drops frames whose
+    /// line misses the first solution by more than 4 times the RMS miss (gross outliers).
+    fn locate_features(
+        &self,
+        geometry: &VirtualGeometry,
+    ) -> Result<[nalgebra::Vector3<f64>; MAX_PART_FEATURES], CalibrationError> {
+        let mut features = [Vector3::zeros(); MAX_PART_FEATURES];
+        for (index, slot) in features
+            .iter_mut()
+            .enumerate()
+            .take(self.header.part_feature_count)
+        {
+            let lines = || {
+                self.frames.items().iter().filter_map(move |frame| {
+                    let pixel = frame.part.and_then(|part| part.get(index).copied())?;
+                    let m = self.virtual_point(&geometry.rotation, pixel).ok()?;
+                    Some(geometry.affine_line(frame.theta, m))
+                })
+            };
+            let mut system = FeatureSystem::default();
+            lines().for_each(|line| system.add(line, 1.0));
+            let mut point = system.solve()?;
+            for _ in 0..2 {
+                let (mut squares, mut count) = (0.0, 0u32);
+                for line in lines() {
+                    let miss = line_residual(&point, line);
+                    squares += miss * miss;
+                    count += 1;
+                }
+                let gate = 4.0 * libm::sqrt(squares / f64::from(count.max(1)));
+                let mut gated = FeatureSystem::default();
+                lines()
+                    .filter(|line| line_residual(&point, *line) <= gate)
+                    .for_each(|line| gated.add(line, 1.0));
+                match gated.solve() {
+                    Ok(next) => point = next,
+                    Err(_) => break,
+                }
+            }
+            *slot = point;
+        }
+        Ok(features)
+    }
+
+    /// Eq 15 over every sighting with a usable depth, least squares (see [`BaseFromDiscFit`]).
+    fn locate_base(
+        &self,
+        geometry: &VirtualGeometry,
+    ) -> Result<(f64, Vector3<f64>), CalibrationError> {
+        let mut fit = BaseFromDiscFit::default();
+        let mut first_invalid = None;
+        for (position, sighting) in self.effectors.items().iter().enumerate() {
+            match self.sighting_disc_points(geometry, sighting)? {
+                Some(pair) => {
+                    for (p_disc, which) in pair.iter().zip(0..2) {
+                        fit.add(*p_disc, sighting.base_point(which));
+                    }
+                }
+                None => {
+                    first_invalid.get_or_insert(position);
+                }
+            }
+        }
+        if fit.count() == 0 {
+            return Err(self.no_effector_error(first_invalid));
+        }
+        fit.solve(self.config.disc_height_in_base_m)
+    }
+
+    fn rms_reprojection(&self, model: &WorkcellModel) -> f64 {
+        let problem = self.problem();
+        let mut squares = 0.0;
+        let mut count = 0u32;
+        super::model::for_each_observation(
+            problem.frames,
+            problem.effectors,
+            problem.feature_count,
+            problem.reference_radius_m,
+            |observation| {
+                if let Some(r) = model.residual(&self.pinhole, observation) {
+                    squares += r.norm_squared();
+                    count += 1;
+                }
+            },
+        );
+        if count == 0 {
+            0.0
+        } else {
+            libm::sqrt(squares / f64::from(count))
+        }
+    }
+
+    fn result(&self, model: &WorkcellModel, rms_px: f64, outliers: u32) -> CalibrationResult {
+        let r = model.disc_from_camera.matrix();
+        let c = model.camera_centre_disc;
+        let mut features_m: HVec<[f64; 3], MAX_PART_FEATURES> = HVec::new();
+        let mut sum = Vector3::zeros();
+        for feature in model.features_rotating.iter().take(model.feature_count) {
+            // Cannot overflow: feature_count <= MAX_PART_FEATURES (checked in `new`).
+            let _ = features_m.push([feature.x, feature.y, feature.z]);
+            sum += feature;
+        }
+        let count = model.feature_count.max(1) as f64;
+        let position = sum / count;
+        let yaw = match (
+            model.features_rotating.first(),
+            model.features_rotating.get(1),
+        ) {
+            (Some(f0), Some(f1)) => libm::atan2(f1.y - f0.y, f1.x - f0.x),
+            _ => 0.0,
+        };
+        let t = model.base_translation;
+        CalibrationResult {
+            camera: CameraEstimate {
+                height_m: c.z,
+                disc_from_camera: RigidTransform {
+                    rotation: [
+                        [r.m11, r.m12, r.m13],
+                        [r.m21, r.m22, r.m23],
+                        [r.m31, r.m32, r.m33],
+                    ],
+                    translation_m: [c.x, c.y, c.z],
+                },
+            },
+            part: PartEstimate {
+                features_m,
+                position_m: [position.x, position.y, position.z],
+                yaw_rad: yaw,
+            },
+            base_from_disc: BaseFromDisc {
+                yaw_rad: wrap_angle(model.base_yaw),
+                translation_m: [t.x, t.y, t.z],
+            },
+            quality: CalibrationQuality {
+                frames_used: self.frames_used,
+                rms_reprojection_px: rms_px,
+                effector_frames_used: u32::try_from(self.effectors.items().len())
+                    .unwrap_or(u32::MAX),
+                outliers_rejected: outliers,
+            },
+        }
+    }
+}
+
+/// Unused-import guard for `Rotation3` in docs of sizes.
+#[allow(dead_code)]
+type CameraRotation = Rotation3<f64>;

@@ -1,0 +1,35 @@
+//! Tunables of the self-calibration, with defaults for the paper's setting.
+
+/// How the calibration weighs, gates and iterates.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CalibrationConfig {
+    /// Experiment 2 of the paper: the disc plane's height in the base frame is known.
+    /// Then `base_from_disc.translation_m[2]` is this value and Eq 10 is not needed for depth.
+    pub disc_height_in_base_m: Option<f64>,
+    /// Pixel noise standard deviation assumed by gating / weighting (default 0.5).
+    pub pixel_sigma: f64,
+    /// Huber threshold of the refinement, in units of the (robustly estimated) pixel sigma:
+    /// residuals beyond it count linearly, so a gross outlier cannot dominate (default 3).
+    pub huber_k: f64,
+    /// Gate of the refinement in units of the pixel sigma: detections whose residual exceeds
+    /// it after the first convergence are dropped as gross outliers (default 5).
+    pub outlier_gate_sigma: f64,
+    /// Levenberg-Marquardt iterations per refinement phase (default 30).
+    pub max_iterations: u32,
+    /// Smallest conveyor rotation over the observations for heights to be observable
+    /// (default 0.3 rad, about 17 degrees).
+    pub min_rotation_rad: f64,
+}
+
+impl Default for CalibrationConfig {
+    fn default() -> Self {
+        Self {
+            disc_height_in_base_m: None,
+            pixel_sigma: 0.5,
+            huber_k: 3.0,
+            outlier_gate_sigma: 5.0,
+            max_iterations: 30,
+            min_rotation_rad: 0.3,
+        }
+    }
+}

@@ -1,0 +1,118 @@
+//! Typed errors of the self-calibration: each says what went wrong and where
+//! (which frame, which field, which stage), so a log can be fixed or a run diagnosed.
+
+use core::fmt;
+
+/// Why a conic fitted to the reference point's image is not the ellipse the
+/// paper's Step 2 needs (the image of a circle seen from one side is always an ellipse).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConicKind {
+    Hyperbola,
+    Parabola,
+    /// `A u^2 + ... = 0` has no real point (an empty "ellipse").
+    Imaginary,
+}
+
+/// Everything the calibration can refuse, with enough context to act on it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CalibrationError {
+    /// The log header cannot describe a workcell (`field` names the bad value).
+    InvalidHeader { field: &'static str },
+    /// A frame holds NaN or an infinity in `field` (frame = index of the offered frame, from 0).
+    NonFiniteValue { frame: u32, field: &'static str },
+    /// `part_px` holds `found` points but the header announced `expected`.
+    WrongFeatureCount {
+        frame: u32,
+        expected: usize,
+        found: usize,
+    },
+    /// `t_s` decreased: the contract requires non-decreasing capture times.
+    TimeWentBackwards {
+        frame: u32,
+        t_s: f64,
+        previous_t_s: f64,
+    },
+    /// The two end-effector points coincide in the base frame, so Eq 10 has no scale (s = 0).
+    CoincidingEffectorPoints { frame: u32 },
+    /// Not enough observations of `what` were absorbed (`needed` at least, `found` so far).
+    TooFewObservations {
+        what: &'static str,
+        needed: u32,
+        found: u32,
+    },
+    /// The reference points do not pin down a conic: collinear or fewer than five distinct points.
+    DegenerateConic { points: u32 },
+    /// The fitted conic is not an ellipse (Step 2).
+    NotAnEllipse { kind: ConicKind },
+    /// The reference point's image turns the wrong way as theta grows: the camera
+    /// sees the disc from below (the spec requires a camera above the disc).
+    CameraBelowDisc,
+    /// The conveyor angles absorbed so far span less than `needed_rad`: heights are unobservable.
+    InsufficientRotation { span_rad: f64, needed_rad: f64 },
+    /// Eq 10 has no root with both end-effector points in front of the camera in any usable
+    /// sighting (`frame` = index of the first such effector sighting among those absorbed).
+    NoValidDepthRoot { frame: u32 },
+    /// A linear system of `stage` was singular or a result came out non-finite.
+    NumericalFailure { stage: &'static str },
+}
+
+impl fmt::Display for ConicKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ConicKind::Hyperbola => f.write_str("a hyperbola"),
+            ConicKind::Parabola => f.write_str("a parabola"),
+            ConicKind::Imaginary => f.write_str("an imaginary ellipse (no real point)"),
+        }
+    }
+}
+
+impl fmt::Display for CalibrationError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            CalibrationError::InvalidHeader { field } => {
+                write!(f, "invalid log header: field `{field}` is out of range")
+            }
+            CalibrationError::NonFiniteValue { frame, field } => {
+                write!(f, "frame {frame}: field `{field}` is not a finite number")
+            }
+            CalibrationError::WrongFeatureCount { frame, expected, found } => write!(
+                f,
+                "frame {frame}: `part_px` has {found} points, the header says {expected}"
+            ),
+            CalibrationError::TimeWentBackwards { frame, t_s, previous_t_s } => write!(
+                f,
+                "frame {frame}: `t_s` = {t_s} s is before the previous frame's {previous_t_s} s"
+            ),
+            CalibrationError::CoincidingEffectorPoints { frame } => write!(
+                f,
+                "frame {frame}: the two `effector_base_m` points coincide (Eq 10 needs s > 0)"
+            ),
+            CalibrationError::TooFewObservations { what, needed, found } => write!(
+                f,
+                "too few observations of {what}: need at least {needed}, have {found}"
+            ),
+            CalibrationError::DegenerateConic { points } => write!(
+                f,
+                "the {points} reference points do not determine a conic (collinear or fewer than 5 distinct)"
+            ),
+            CalibrationError::NotAnEllipse { kind } => write!(
+                f,
+                "the conic fitted to the reference points is {kind}, not an ellipse"
+            ),
+            CalibrationError::CameraBelowDisc => f.write_str(
+                "the reference point's image turns counter to theta: the camera is below the disc",
+            ),
+            CalibrationError::InsufficientRotation { span_rad, needed_rad } => write!(
+                f,
+                "the conveyor turned only {span_rad} rad over the observations, need {needed_rad} rad"
+            ),
+            CalibrationError::NoValidDepthRoot { frame } => write!(
+                f,
+                "effector sighting {frame}: Eq 10 has no root with both points in front of the camera"
+            ),
+            CalibrationError::NumericalFailure { stage } => {
+                write!(f, "numerical failure in {stage}: singular system or non-finite result")
+            }
+        }
+    }
+}

@@ -1,0 +1,204 @@
+//! The workcell model every estimate describes, and the predicted image of each kind of
+//! observation under it (Eq 1 for the part, Eq 9 for the end effector, the reference
+//! point at `(L cos theta, L sin theta, 0)` and the disc centre at the origin).
+
+use nalgebra::{Matrix2x3, Matrix3, Rotation3, SMatrix, Vector2, Vector3};
+
+use super::pinhole::Pinhole;
+use super::records::{to_vector, EffectorRecord, FrameRecord};
+use crate::observation::MAX_PART_FEATURES;
+
+/// Camera pose, part feature points and `base_from_disc`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WorkcellModel {
+    /// `p_disc = disc_from_camera * p_camera + camera_centre_disc`.
+    pub disc_from_camera: Rotation3<f64>,
+    pub camera_centre_disc: Vector3<f64>,
+    /// Feature points in the rotating frame; `0..feature_count` are meaningful.
+    pub features_rotating: [Vector3<f64>; MAX_PART_FEATURES],
+    pub feature_count: usize,
+    /// `p_base = Rz(base_yaw) p_disc + base_translation`.
+    pub base_yaw: f64,
+    pub base_translation: Vector3<f64>,
+}
+
+/// `Rz(angle)`, the paper's Eq 2.
+pub fn rotation_z(angle: f64) -> Matrix3<f64> {
+    let (s, c) = libm::sincos(angle);
+    Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
+}
+
+/// What an image point is the image of.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Target {
+    /// A point fixed in the disc frame with known coordinates (centre, reference point).
+    KnownDisc(Vector3<f64>),
+    /// Feature `index` of the part, seen at conveyor angle `theta`.
+    Feature { index: usize, theta: f64 },
+    /// An end-effector point with known base-frame coordinates.
+    Effector(Vector3<f64>),
+}
+
+/// One measured image point and what it shows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Observation {
+    pub pixel: Vector2<f64>,
+    pub target: Target,
+}
+
+/// Jacobian of one residual: camera (rotation increment, centre) and, for features and the
+/// end effector, the block of the unknowns it depends on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ResidualJacobian {
+    pub camera: SMatrix<f64, 2, 6>,
+    pub other: OtherBlock,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OtherBlock {
+    None,
+    /// d residual / d feature point (rotating frame).
+    Feature {
+        index: usize,
+        jacobian: Matrix2x3<f64>,
+    },
+    /// d residual / d (base_yaw, base_translation).
+    Base(SMatrix<f64, 2, 4>),
+}
+
+/// Calls `visit` for every stored image point with the given reference radius.
+pub fn for_each_observation(
+    frames: &[FrameRecord],
+    effectors: &[EffectorRecord],
+    feature_count: usize,
+    reference_radius_m: f64,
+    mut visit: impl FnMut(&Observation),
+) {
+    for frame in frames {
+        if let Some(centre) = frame.centre {
+            visit(&Observation {
+                pixel: to_vector(centre),
+                target: Target::KnownDisc(Vector3::zeros()),
+            });
+        }
+        if let Some(reference) = frame.reference {
+            let (s, c) = libm::sincos(frame.theta);
+            let p_disc = Vector3::new(reference_radius_m * c, reference_radius_m * s, 0.0);
+            visit(&Observation {
+                pixel: to_vector(reference),
+                target: Target::KnownDisc(p_disc),
+            });
+        }
+        if let Some(part) = &frame.part {
+            for (index, pixel) in part.iter().take(feature_count).enumerate() {
+                visit(&Observation {
+                    pixel: to_vector(*pixel),
+                    target: Target::Feature {
+                        index,
+                        theta: frame.theta,
+                    },
+                });
+            }
+        }
+    }
+    for sighting in effectors {
+        for which in 0..2 {
+            visit(&Observation {
+                pixel: sighting.pixel(which),
+                target: Target::Effector(sighting.base_point(which)),
+            });
+        }
+    }
+}
+
+impl WorkcellModel {
+    /// Disc-frame coordinates of the observed point under this model.
+    pub fn point_disc(&self, target: &Target) -> Vector3<f64> {
+        match *target {
+            Target::KnownDisc(p) => p,
+            Target::Feature { index, theta } => {
+                let p_rotating = self
+                    .features_rotating
+                    .get(index)
+                    .copied()
+                    .unwrap_or_default();
+                rotation_z(theta) * p_rotating
+            }
+            Target::Effector(p_base) => {
+                rotation_z(-self.base_yaw) * (p_base - self.base_translation)
+            }
+        }
+    }
+
+    /// Predicted minus measured pixel, or `None` when the point is behind the camera.
+    pub fn residual(&self, pinhole: &Pinhole, observation: &Observation) -> Option<Vector2<f64>> {
+        let p_disc = self.point_disc(&observation.target);
+        let p_camera = self.disc_from_camera.inverse() * (p_disc - self.camera_centre_disc);
+        pinhole
+            .project(&p_camera)
+            .map(|pixel| pixel - observation.pixel)
+    }
+
+    /// The residual and its Jacobian for the increments of [`WorkcellModel::retract`].
+    pub fn residual_with_jacobian(
+        &self,
+        pinhole: &Pinhole,
+        observation: &Observation,
+    ) -> Option<(Vector2<f64>, ResidualJacobian)> {
+        let p_disc = self.point_disc(&observation.target);
+        let camera_from_disc = self.disc_from_camera.inverse();
+        let camera_from_disc_matrix = *camera_from_disc.matrix();
+        let p_camera = camera_from_disc * (p_disc - self.camera_centre_disc);
+        let (pixel, projection) = pinhole.project_with_jacobian(&p_camera)?;
+        // Right-perturbed rotation R Exp(delta): p_camera -> p_camera - delta x p_camera.
+        let d_rotation = projection * p_camera.cross_matrix();
+        let d_point_disc = projection * camera_from_disc_matrix;
+        let d_centre = -d_point_disc;
+        let mut camera = SMatrix::<f64, 2, 6>::zeros();
+        camera.fixed_view_mut::<2, 3>(0, 0).copy_from(&d_rotation);
+        camera.fixed_view_mut::<2, 3>(0, 3).copy_from(&d_centre);
+        let other = match observation.target {
+            Target::KnownDisc(_) => OtherBlock::None,
+            Target::Feature { index, theta } => OtherBlock::Feature {
+                index,
+                jacobian: d_point_disc * rotation_z(theta),
+            },
+            Target::Effector(_) => {
+                // p_disc = Rz(-yaw) (p_base - t): d/d yaw = (p_disc.y, -p_disc.x, 0).
+                let d_yaw = d_point_disc * Vector3::new(p_disc.y, -p_disc.x, 0.0);
+                let d_translation = -(d_point_disc * rotation_z(-self.base_yaw));
+                let mut block = SMatrix::<f64, 2, 4>::zeros();
+                block.fixed_view_mut::<2, 1>(0, 0).copy_from(&d_yaw);
+                block.fixed_view_mut::<2, 3>(0, 1).copy_from(&d_translation);
+                OtherBlock::Base(block)
+            }
+        };
+        Some((
+            pixel - observation.pixel,
+            ResidualJacobian { camera, other },
+        ))
+    }
+
+    /// Applies an increment laid out as [rotation (3), camera centre (3), features (3 each,
+    /// `MAX_PART_FEATURES` slots), base yaw, base translation (3)].
+    pub fn retract(&self, increment: &SMatrix<f64, PARAMETERS, 1>) -> Self {
+        let mut next = *self;
+        let rotation: Vector3<f64> = increment.fixed_view::<3, 1>(0, 0).into_owned();
+        next.disc_from_camera = self.disc_from_camera * Rotation3::new(rotation);
+        next.disc_from_camera.renormalize();
+        next.camera_centre_disc += increment.fixed_view::<3, 1>(3, 0);
+        for (slot, feature) in next.features_rotating.iter_mut().enumerate() {
+            *feature += increment.fixed_view::<3, 1>(FEATURE_OFFSET + 3 * slot, 0);
+        }
+        next.base_yaw += increment.fixed_view::<1, 1>(BASE_OFFSET, 0).x;
+        next.base_translation += increment.fixed_view::<3, 1>(BASE_OFFSET + 1, 0);
+        next
+    }
+}
+
+/// Offset of the first feature's parameters.
+pub const FEATURE_OFFSET: usize = 6;
+/// Offset of `base_yaw` (followed by the translation).
+pub const BASE_OFFSET: usize = FEATURE_OFFSET + 3 * MAX_PART_FEATURES;
+/// Parameters of the full model: camera 6, features 3 each, base 4.
+pub const PARAMETERS: usize = BASE_OFFSET + 4;

@@ -1,0 +1,64 @@
+//! The contract's pinhole camera (square pixels, no distortion): pixels to rays and
+//! camera-frame points to pixels with the projection's Jacobian.
+
+use nalgebra::{Matrix2x3, Vector2, Vector3};
+
+use crate::observation::CameraIntrinsics;
+
+/// Closest a point may come to the camera plane (m) and still be projected.
+const MIN_DEPTH_M: f64 = 1e-6;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pinhole {
+    pub f_px: f64,
+    pub cx: f64,
+    pub cy: f64,
+}
+
+impl Pinhole {
+    pub fn new(intrinsics: &CameraIntrinsics) -> Self {
+        Self {
+            f_px: intrinsics.f_px,
+            cx: intrinsics.cx,
+            cy: intrinsics.cy,
+        }
+    }
+
+    /// Ray coordinates `((u - cx) / f, (v - cy) / f)` of a pixel: the image point at `f = 1`.
+    pub fn ray(&self, pixel: Vector2<f64>) -> Vector2<f64> {
+        Vector2::new(
+            (pixel.x - self.cx) / self.f_px,
+            (pixel.y - self.cy) / self.f_px,
+        )
+    }
+
+    /// `u = f x / z + cx`, `v = f y / z + cy`, or `None` for a point at or behind the camera.
+    pub fn project(&self, p_camera: &Vector3<f64>) -> Option<Vector2<f64>> {
+        if p_camera.z <= MIN_DEPTH_M {
+            return None;
+        }
+        Some(Vector2::new(
+            self.f_px * p_camera.x / p_camera.z + self.cx,
+            self.f_px * p_camera.y / p_camera.z + self.cy,
+        ))
+    }
+
+    /// The projection and its Jacobian with respect to the camera-frame point.
+    pub fn project_with_jacobian(
+        &self,
+        p_camera: &Vector3<f64>,
+    ) -> Option<(Vector2<f64>, Matrix2x3<f64>)> {
+        let pixel = self.project(p_camera)?;
+        let inverse_z = 1.0 / p_camera.z;
+        let scale = self.f_px * inverse_z;
+        let jacobian = Matrix2x3::new(
+            scale,
+            0.0,
+            -scale * p_camera.x * inverse_z,
+            0.0,
+            scale,
+            -scale * p_camera.y * inverse_z,
+        );
+        Some((pixel, jacobian))
+    }
+}

@@ -1,0 +1,92 @@
+//! Fixed-capacity observation store with deterministic thinning, so the estimators'
+//! memory is bounded independently of how many frames a run produces.
+//!
+//! Items are kept when their offer index is a multiple of `stride`. When the store is
+//! full, every other kept item is dropped (those left are exactly the multiples of
+//! `2 * stride`) and the stride doubles: the kept set is always an evenly spaced subsample
+//! of everything offered, independent of timing, so a run is reproducible.
+
+use heapless::Vec;
+
+/// An evenly thinned subsample of at most `N` items.
+#[derive(Debug, Clone)]
+pub struct ThinningStore<T, const N: usize> {
+    items: Vec<T, N>,
+    stride: u32,
+    offered: u32,
+}
+
+impl<T: Copy, const N: usize> ThinningStore<T, N> {
+    pub const fn new() -> Self {
+        Self {
+            items: Vec::new(),
+            stride: 1,
+            offered: 0,
+        }
+    }
+
+    /// Offer one item; it is kept if it falls on the current stride.
+    pub fn offer(&mut self, item: T) {
+        let index = self.offered;
+        self.offered = self.offered.saturating_add(1);
+        if N == 0 || index % self.stride != 0 {
+            return;
+        }
+        if self.items.is_full() {
+            let mut position = 0usize;
+            self.items.retain(|_| {
+                let keep = position % 2 == 0;
+                position += 1;
+                keep
+            });
+            self.stride = self.stride.saturating_mul(2);
+            if index % self.stride != 0 {
+                return;
+            }
+        }
+        // Cannot fail: either there was room or the compaction above freed half the store.
+        let _ = self.items.push(item);
+    }
+
+    pub fn items(&self) -> &[T] {
+        &self.items
+    }
+
+    /// How many items were offered in total (kept or not).
+    pub fn offered(&self) -> u32 {
+        self.offered
+    }
+}
+
+impl<T: Copy, const N: usize> Default for ThinningStore<T, N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keeps_everything_until_full_then_thins_evenly() {
+        let mut store: ThinningStore<u32, 8> = ThinningStore::new();
+        for i in 0..8 {
+            store.offer(i);
+        }
+        assert_eq!(store.items(), &[0, 1, 2, 3, 4, 5, 6, 7]);
+        for i in 8..40 {
+            store.offer(i);
+        }
+        assert_eq!(store.items().len(), 5);
+        assert_eq!(store.items(), &[0, 8, 16, 24, 32]);
+        assert_eq!(store.offered(), 40);
+    }
+
+    #[test]
+    fn zero_capacity_keeps_nothing() {
+        let mut store: ThinningStore<u32, 0> = ThinningStore::new();
+        store.offer(1);
+        assert!(store.items().is_empty());
+    }
+}
