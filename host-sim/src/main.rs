@@ -2,6 +2,7 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use host_sim::calibrate_cmd::{run_calibrate, CalibrateArgs};
 use host_sim::workcell::command::{run_record, RecordArgs};
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
@@ -16,12 +17,15 @@ struct Cli {
 enum Command {
     /// Record a synthetic observation log (and LOG.truth.json) from a random workcell.
     Record(RecordArgs),
+    /// Calibrate from a log: result JSON on stdout, summary (and errors with --truth) on stderr.
+    Calibrate(CalibrateArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let outcome = match &cli.command {
         Command::Record(args) => run_record(args),
+        Command::Calibrate(args) => run_calibrate(args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

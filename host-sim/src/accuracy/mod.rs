@@ -1,0 +1,4 @@
+//! Seeded Monte-Carlo accuracy runs of the self-calibration over random
+//! workcells, with the paper's two-frame method beside the refined estimate.
+
+pub mod metrics;
