@@ -2,6 +2,7 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use host_sim::accuracy::command::{run_accuracy, AccuracyArgs};
 use host_sim::calibrate_cmd::{run_calibrate, CalibrateArgs};
 use host_sim::workcell::command::{run_record, RecordArgs};
 
@@ -19,6 +20,8 @@ enum Command {
     Record(RecordArgs),
     /// Calibrate from a log: result JSON on stdout, summary (and errors with --truth) on stderr.
     Calibrate(CalibrateArgs),
+    /// Seeded Monte-Carlo accuracy over random workcells: markdown on stdout, CSV/JSON in --out.
+    Accuracy(AccuracyArgs),
 }
 
 fn main() -> ExitCode {
@@ -26,6 +29,7 @@ fn main() -> ExitCode {
     let outcome = match &cli.command {
         Command::Record(args) => run_record(args),
         Command::Calibrate(args) => run_calibrate(args),
+        Command::Accuracy(args) => run_accuracy(args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
