@@ -18,6 +18,10 @@ pub struct RecordArgs {
     /// Seed of the random workcell and noise (same seed, same log).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Show the end effector in exactly this many frames (default: the scenario's range);
+    /// reproduces the `paper/effector-N` trials of `accuracy`.
+    #[arg(long)]
+    pub effector_frames: Option<usize>,
     /// Where to write the log (JSON Lines); the truth goes to the same name with `.truth.json`.
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
@@ -26,6 +30,10 @@ pub struct RecordArgs {
 pub fn run_record(args: &RecordArgs) -> anyhow::Result<()> {
     let scenario = Scenario::named(&args.scenario)
         .with_context(|| format!("choose one of {}", SCENARIO_NAMES.join(", ")))?;
+    let scenario = match args.effector_frames {
+        Some(count) => scenario.with_effector_frames(count),
+        None => scenario,
+    };
     let run = simulate(&scenario, args.seed)?;
     write_log_file(&args.output, &run.log)?;
     let truth_path = truth_path_for(&args.output);
