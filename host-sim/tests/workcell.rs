@@ -63,7 +63,7 @@ fn workcells_stay_within_the_documented_ranges() {
 
             let [x, y, z] = truth.base_from_disc.translation_m;
             assert!((0.6..=1.0).contains(&x.hypot(y)), "disc centre {x} {y}");
-            assert!(z <= SHOULDER_HEIGHT_M && z >= SHOULDER_HEIGHT_M - 0.5);
+            assert!((SHOULDER_HEIGHT_M - 0.5..=SHOULDER_HEIGHT_M).contains(&z));
             assert!(truth.base_from_disc.yaw_rad > -PI && truth.base_from_disc.yaw_rad <= PI);
 
             assert_eq!(truth.part.features_m.len(), scenario.part_feature_count);

@@ -175,3 +175,38 @@ pub fn run_trials(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trial_seeds_are_stable_distinct_and_shared_within_a_family() {
+        let seed = trial_seed(1, "paper", 3);
+        assert_eq!(seed, trial_seed(1, "paper", 3));
+        assert_eq!(seed, trial_seed(1, "paper/effector-5", 3));
+        assert_ne!(seed, trial_seed(1, "paper", 4));
+        assert_ne!(seed, trial_seed(2, "paper", 3));
+        assert_ne!(seed, trial_seed(1, "noisy", 3));
+    }
+
+    #[test]
+    fn trials_come_back_in_plan_order_and_match_a_serial_run() {
+        let scenarios = [
+            Scenario::named("noise-free").expect("scenario"),
+            Scenario::paper().with_effector_frames(5),
+        ];
+        let plans = plan_trials(&scenarios, 3, 9);
+        assert_eq!(plans.len(), 6);
+        let options = HarnessOptions::default();
+        let parallel = run_trials(&plans, &options, &ProgressBar::hidden());
+        for (plan, outcome) in plans.iter().zip(&parallel) {
+            assert_eq!((plan.trial, plan.seed), (outcome.trial, outcome.seed));
+            assert_eq!(plan.scenario.name, outcome.scenario);
+            let serial = run_trial(plan, &options);
+            assert_eq!(serial.refined, outcome.refined);
+        }
+        let sweep: Vec<u32> = parallel.iter().skip(3).map(|o| o.effector_frames).collect();
+        assert_eq!(sweep, vec![5, 5, 5]);
+    }
+}

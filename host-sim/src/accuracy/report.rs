@@ -417,3 +417,108 @@ pub fn write_outputs(
     let json = serde_json::to_string_pretty(rows).context("serialising the summary")?;
     write("summary.json", &json)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn errors(scale: f64) -> ErrorMetrics {
+        ErrorMetrics {
+            feature_mm: scale,
+            part_position_mm: scale,
+            part_yaw_deg: scale / 10.0,
+            camera_height_mm: scale,
+            camera_rotation_deg: scale / 10.0,
+            base_translation_mm: scale,
+            base_yaw_deg: scale / 100.0,
+        }
+    }
+
+    fn outcome(
+        scenario: &str,
+        trial: usize,
+        refined: Result<ErrorMetrics, String>,
+    ) -> TrialOutcome {
+        TrialOutcome {
+            scenario: scenario.to_string(),
+            trial,
+            seed: trial as u64,
+            effector_frames: 7,
+            camera_tilt_deg: 12.0,
+            refined,
+            paper: Ok(errors(10.0)),
+        }
+    }
+
+    #[test]
+    fn failures_count_as_infinite_errors_in_the_summary() {
+        let outcomes = [
+            outcome("paper", 0, Ok(errors(1.0))),
+            outcome("paper", 1, Ok(errors(3.0))),
+            outcome("paper", 2, Err("no ellipse, frame 4".to_string())),
+        ];
+        let rows = summarise(&outcomes);
+        assert_eq!(rows.len(), 2);
+        let refined = &rows[0];
+        assert_eq!(
+            (refined.method, refined.trials, refined.failures),
+            (Method::Refined, 3, 1)
+        );
+        assert_eq!(
+            refined.first_failure.as_deref(),
+            Some("no ellipse, frame 4")
+        );
+        let position = refined.metric("part_position_mm").expect("metric");
+        assert_eq!(position.median, Some(3.0));
+        assert_eq!(position.p95, None);
+        let target = &TARGETS[0];
+        assert_eq!(target_met(&rows, target), Some((f64::INFINITY, false)));
+        assert_eq!(
+            rows[1].metric("part_position_mm").and_then(|m| m.p95),
+            Some(10.0)
+        );
+
+        let report = markdown(&rows, &outcomes, 3, 1);
+        assert!(
+            report.contains("| paper | refined | 1/3 | 3.000 / fail |"),
+            "{report}"
+        );
+        assert!(
+            report.contains("| paper | part_position_mm | < 2 | fail | NO |"),
+            "{report}"
+        );
+        assert!(report.contains("- paper / refined: no ellipse, frame 4"));
+        assert!(
+            !report.contains("end effector\n"),
+            "no sweep section without sweep rows"
+        );
+    }
+
+    #[test]
+    fn csv_has_one_row_per_trial_and_method_with_quoted_messages() {
+        let outcomes = [
+            outcome("paper/effector-5", 0, Ok(errors(2.0))),
+            outcome(
+                "paper/effector-5",
+                1,
+                Err("frame 3: \"x\", bad".to_string()),
+            ),
+        ];
+        let csv = trials_csv(&outcomes);
+        let lines: Vec<&str> = csv.lines().collect();
+        assert_eq!(lines.len(), 5);
+        let columns = lines[0].split(',').count();
+        assert_eq!(columns, 8 + METRIC_COLUMNS.len());
+        assert!(lines[1].starts_with("paper/effector-5,0,0,7,12.000,refined,ok,,2.000000000,"));
+        assert!(
+            lines[3].contains(",refined,failed,\"frame 3: \"\"x\"\", bad\","),
+            "{}",
+            lines[3]
+        );
+        let report = markdown(&summarise(&outcomes), &outcomes, 2, 1);
+        assert!(
+            report.contains("| paper/effector-5 | refined | 1/2 |"),
+            "{report}"
+        );
+    }
+}
