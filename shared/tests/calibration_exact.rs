@@ -3,7 +3,7 @@
 mod calibration_support;
 
 use calibration_support::{Errors, Rng, Scenario, Workcell};
-use shared::calibration::{CalibrationConfig, HostCalibrator};
+use shared::calibration::{CalibrationConfig, FirmwareCalibrator, HostCalibrator};
 
 fn calibrate(
     seed: u64,
@@ -44,5 +44,83 @@ fn paper_estimate_is_exact_without_noise() {
         eprintln!("seed {seed}: {errors:?}");
         assert!(errors.max_metres() < 1e-4, "seed {seed}: {errors:?}");
         assert!(errors.max_radians() < 1e-4, "seed {seed}: {errors:?}");
+    }
+}
+
+#[test]
+fn firmware_instance_thins_its_store_and_stays_exact() {
+    // 600 frames over two revolutions into 96 slots: the store thins to every 8th frame.
+    let scenario = Scenario {
+        frames: 600,
+        rotation_rad: 4.0 * std::f64::consts::PI,
+        effector_frames: 40,
+        ..Scenario::exact()
+    };
+    let mut rng = Rng::new(21);
+    let workcell = Workcell::random(&mut rng, 3, false);
+    let frames = workcell.record(&mut rng, &scenario);
+    let mut calibrator =
+        FirmwareCalibrator::new(&workcell.header(), CalibrationConfig::default()).unwrap();
+    for frame in &frames {
+        calibrator.push(frame).unwrap();
+    }
+    let result = calibrator.estimate().unwrap();
+    let errors = Errors::of(&result, &workcell);
+    assert!(
+        errors.max_metres() < 1e-4 && errors.max_radians() < 1e-4,
+        "{errors:?}"
+    );
+    assert_eq!(result.quality.frames_used, 600);
+    assert!(result.quality.effector_frames_used <= 16);
+}
+
+#[test]
+fn known_disc_height_is_exact_and_kept() {
+    let mut rng = Rng::new(31);
+    let workcell = Workcell::random(&mut rng, 4, true);
+    let frames = workcell.record(
+        &mut rng,
+        &Scenario {
+            feature_count: 4,
+            non_planar: true,
+            ..Scenario::exact()
+        },
+    );
+    let config = CalibrationConfig {
+        disc_height_in_base_m: Some(workcell.base_translation.z),
+        ..CalibrationConfig::default()
+    };
+    let mut calibrator = HostCalibrator::new(&workcell.header(), config).unwrap();
+    frames
+        .iter()
+        .for_each(|frame| calibrator.push(frame).unwrap());
+    for result in [
+        calibrator.estimate().unwrap(),
+        calibrator.paper_estimate().unwrap(),
+    ] {
+        let errors = Errors::of(&result, &workcell);
+        assert!(
+            errors.max_metres() < 1e-4 && errors.max_radians() < 1e-4,
+            "{errors:?}"
+        );
+        assert_eq!(
+            result.base_from_disc.translation_m[2],
+            workcell.base_translation.z
+        );
+    }
+}
+
+#[test]
+fn recursive_conic_passes_through_every_reference_image() {
+    let (workcell, calibrator) = calibrate(41, &Scenario::exact(), CalibrationConfig::default());
+    let conic = calibrator.conic().unwrap();
+    let mut rng = Rng::new(41);
+    let _ = Workcell::random(&mut rng, 3, false);
+    for frame in workcell.record(&mut rng, &Scenario::exact()) {
+        if let Some([u, v]) = frame.reference_px {
+            let k = &workcell.intrinsics;
+            let ray = nalgebra::Vector2::new((u - k.cx) / k.f_px, (v - k.cy) / k.f_px);
+            assert!(conic.sampson_distance(ray) * k.f_px < 1e-6);
+        }
     }
 }

@@ -1,19 +1,22 @@
 //! The fixed-memory incremental self-calibrator: absorbs frames one at a time and
 //! produces the paper's estimate (Section 2 and 3) or the refined maximum-likelihood one.
 
+use super::exceeds;
 use heapless::Vec as HVec;
-use nalgebra::{Rotation3, Vector2, Vector3};
+use nalgebra::{Vector2, Vector3};
 
 use super::config::CalibrationConfig;
 use super::conic::{Conic, ConicFit};
 use super::effector::{depth_roots, wrap_angle, BaseFromDiscFit, DepthRoots};
 use super::error::CalibrationError;
+use super::homography::{pose_from_plane, PlanePoint, PlanePose};
 use super::model::WorkcellModel;
 use super::part::{intersect_two_lines, line_residual, FeatureSystem, VirtualGeometry};
 use super::pinhole::Pinhole;
 use super::records::{to_f32, to_vector, EffectorRecord, FrameRecord, PixelF32};
 use super::refine::{refine, Problem};
 use super::store::ThinningStore;
+use super::uncertainty::EstimateUncertainty;
 use super::virtual_rotation::{disc_from_virtual, VirtualRotation};
 use crate::observation::{
     BaseFromDisc, CalibrationQuality, CalibrationResult, CameraEstimate, LogHeader,
@@ -23,9 +26,13 @@ use crate::observation::{
 /// Fixed-memory incremental estimator; `FRAMES` and `EFFECTOR_FRAMES` bound the stored
 /// observations (evenly thinned when more arrive; see [`ThinningStore`]).
 ///
-/// `size_of` per instantiation (x86-64 and thumbv7em alike, f64 aligned to 8):
-/// about `320 + 104 * FRAMES + 40 * EFFECTOR_FRAMES` bytes — see [`FirmwareCalibrator`] and
-/// [`HostCalibrator`] and the test `calibrator_sizes_are_documented`.
+/// Memory: `size_of` is `488 + 104 * FRAMES + 40 * EFFECTOR_FRAMES` bytes on x86-64
+/// (a [`FrameRecord`] is 104 B: theta f64, three optional f32 pixel sets; an
+/// [`EffectorRecord`] 40 B; the rest is the header, config, the 6x6 RLS conic state and
+/// counters), a little less on thumbv7em where `usize` is 4 B. Measured by the test
+/// `calibrator_sizes_are_documented`: [`FirmwareCalibrator`] 11 112 B, [`HostCalibrator`]
+/// 117 224 B. [`SelfCalibrator::estimate`] additionally needs stack for the refinement's
+/// 34x34 normal equations (a few copies of 9.2 KiB), independent of the instance size.
 #[derive(Debug, Clone)]
 pub struct SelfCalibrator<const FRAMES: usize, const EFFECTOR_FRAMES: usize> {
     header: LogHeader,
@@ -42,9 +49,9 @@ pub struct SelfCalibrator<const FRAMES: usize, const EFFECTOR_FRAMES: usize> {
     last_t_s: Option<f64>,
 }
 
-/// The firmware's small instance: 96 frames, 16 effector sightings (~10.9 KiB).
+/// The firmware's small instance: 96 frames, 16 effector sightings (11 112 B on x86-64).
 pub type FirmwareCalibrator = SelfCalibrator<96, 16>;
-/// The host's instance: 1024 frames, 256 effector sightings (~114 KiB).
+/// The host's instance: 1024 frames, 256 effector sightings (117 224 B on x86-64).
 pub type HostCalibrator = SelfCalibrator<1024, 256>;
 
 fn finite(pixel: &PixelPoint) -> bool {
@@ -193,7 +200,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
                 .zip(b1.iter())
                 .map(|(a, b)| (a - b) * (a - b))
                 .sum();
-            if !(distance_squared > 1e-12) {
+            if !exceeds(distance_squared, 1e-12) {
                 return Err(CalibrationError::CoincidingEffectorPoints { frame: index });
             }
         }
@@ -217,19 +224,40 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
 
     /// The refined (maximum-likelihood) estimate from everything absorbed so far.
     pub fn estimate(&mut self) -> Result<CalibrationResult, CalibrationError> {
+        self.estimate_with_uncertainty().map(|(result, _)| result)
+    }
+
+    /// [`SelfCalibrator::estimate`] with the standard deviations of its parameters (from the
+    /// Gauss-Newton covariance at the optimum, scaled by the measured reprojection noise).
+    pub fn estimate_with_uncertainty(
+        &mut self,
+    ) -> Result<(CalibrationResult, EstimateUncertainty), CalibrationError> {
         let initial = self.initial_model()?;
         let problem = self.problem();
         let refined = refine(&problem, initial, &self.config)?;
-        Ok(self.result(&refined.model, refined.rms_px, refined.outliers))
+        let uncertainty = refined
+            .covariance
+            .as_ref()
+            .map(|covariance| {
+                EstimateUncertainty::from_covariance(covariance, self.header.part_feature_count)
+            })
+            .ok_or(CalibrationError::NumericalFailure {
+                stage: "covariance of the estimate",
+            })?;
+        Ok((
+            self.result(&refined.model, refined.rms_px, refined.outliers),
+            uncertainty,
+        ))
     }
 
     /// The paper's own method for comparison: the virtual rotation from the RLS conic and the
     /// mean centre image, Eq 8 with two frames, Eq 15 with one robot pose.
     pub fn paper_estimate(&self) -> Result<CalibrationResult, CalibrationError> {
+        self.check_reference_count()?;
+        self.check_rotation_span()?;
         let conic = self.conic.solve()?;
         let centre = self.mean_centre_ray(None)?;
         let rotation = VirtualRotation::from_conic(&conic, centre, self.header.reference_radius_m)?;
-        self.check_rotation_span()?;
         let gamma = self.disc_axis_angle(&rotation, true)?;
         let geometry = VirtualGeometry { rotation, gamma };
         let (disc_from_camera, camera_centre_disc) = disc_from_virtual(&rotation, gamma);
@@ -417,6 +445,25 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         Ok(conic)
     }
 
+    /// Five reference detections at least: the conic of Step 2 has five degrees of freedom,
+    /// and the homography needs four points besides the centre.
+    fn check_reference_count(&self) -> Result<(), CalibrationError> {
+        let found = self
+            .frames
+            .items()
+            .iter()
+            .filter(|f| f.reference.is_some())
+            .count();
+        if found < 5 {
+            return Err(CalibrationError::TooFewObservations {
+                what: "reference point images",
+                needed: 5,
+                found: u32::try_from(found).unwrap_or(u32::MAX),
+            });
+        }
+        Ok(())
+    }
+
     fn check_rotation_span(&self) -> Result<(), CalibrationError> {
         let mut lowest = f64::INFINITY;
         let mut highest = f64::NEG_INFINITY;
@@ -514,13 +561,33 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
     /// The starting point of the refinement: robust virtual rotation, all-frame Eq 8 and
     /// all-sighting Eq 15.
     fn initial_model(&self) -> Result<WorkcellModel, CalibrationError> {
-        let conic = self.robust_conic()?;
-        let centre = self.robust_centre_ray()?;
-        let rotation = VirtualRotation::from_conic(&conic, centre, self.header.reference_radius_m)?;
+        self.check_reference_count()?;
         self.check_rotation_span()?;
-        let gamma = self.disc_axis_angle(&rotation, false)?;
-        let geometry = VirtualGeometry { rotation, gamma };
-        let (disc_from_camera, camera_centre_disc) = disc_from_virtual(&rotation, gamma);
+        let geometry = match self.plane_pose() {
+            Ok(pose) => VirtualGeometry {
+                rotation: VirtualRotation::from_pose(
+                    &pose.disc_from_camera,
+                    &pose.camera_centre_disc,
+                    self.header.reference_radius_m,
+                )?,
+                gamma: 0.0,
+            },
+            Err(CalibrationError::CameraBelowDisc) => {
+                return Err(CalibrationError::CameraBelowDisc)
+            }
+            // The homography could not be had: the paper's virtual rotation, whose errors
+            // (degenerate or non-elliptic conic, ...) then say what is wrong with the data.
+            Err(_) => {
+                let conic = self.robust_conic()?;
+                let centre = self.robust_centre_ray()?;
+                let rotation =
+                    VirtualRotation::from_conic(&conic, centre, self.header.reference_radius_m)?;
+                let gamma = self.disc_axis_angle(&rotation, false)?;
+                VirtualGeometry { rotation, gamma }
+            }
+        };
+        let (disc_from_camera, camera_centre_disc) =
+            disc_from_virtual(&geometry.rotation, geometry.gamma);
         let features = self.locate_features(&geometry)?;
         let (base_yaw, base_translation) = self.locate_base(&geometry)?;
         Ok(WorkcellModel {
@@ -531,6 +598,27 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
             base_yaw,
             base_translation,
         })
+    }
+
+    /// Camera pose from the disc-plane homography of the centre and reference detections.
+    fn plane_pose(&self) -> Result<PlanePose, CalibrationError> {
+        let radius = self.header.reference_radius_m;
+        let pinhole = self.pinhole;
+        let points = || {
+            self.frames.items().iter().flat_map(move |frame| {
+                let (s, c) = libm::sincos(frame.theta);
+                let centre = frame.centre.map(|px| PlanePoint {
+                    disc_xy: Vector2::zeros(),
+                    ray: pinhole.ray(to_vector(px)),
+                });
+                let reference = frame.reference.map(|px| PlanePoint {
+                    disc_xy: Vector2::new(radius * c, radius * s),
+                    ray: pinhole.ray(to_vector(px)),
+                });
+                centre.into_iter().chain(reference)
+            })
+        };
+        pose_from_plane(points, self.pinhole.f_px, 4.0 * self.config.pixel_sigma)
     }
 
     /// Eq 8 over all frames for every feature, twice: the second pass drops frames whose
@@ -676,7 +764,3 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         }
     }
 }
-
-/// Unused-import guard for `Rotation3` in docs of sizes.
-#[allow(dead_code)]
-type CameraRotation = Rotation3<f64>;

@@ -9,6 +9,7 @@
 //! centroid and scaled to unit RMS radius (Hartley-style normalisation), which keeps the
 //! smallest eigenvector well conditioned wherever the ellipse lies in the image.
 
+use super::exceeds;
 use nalgebra::{Matrix3, SMatrix, SVector, SymmetricEigen, Vector2};
 
 use super::error::{CalibrationError, ConicKind};
@@ -148,14 +149,14 @@ impl ConicFit {
         }
         let s = &self.scatter;
         let weight_sum = s.m66;
-        if !(weight_sum > 0.0) || !s.iter().all(|v| v.is_finite()) {
+        if !exceeds(weight_sum, 0.0) || !s.iter().all(|v| v.is_finite()) {
             return Err(CalibrationError::NumericalFailure { stage: "conic fit" });
         }
         // Centroid and RMS radius from the scatter's own moments (column of x, y, 1).
         let mean = Vector2::new(s.m46 / weight_sum, s.m56 / weight_sum);
         let second_moment = (s.m16 + s.m36) / weight_sum;
         let variance = second_moment - mean.norm_squared();
-        if !(variance > 1e-18) {
+        if !exceeds(variance, 1e-18) {
             return Err(CalibrationError::DegenerateConic {
                 points: self.points,
             });
@@ -186,7 +187,7 @@ impl ConicFit {
         // Back to ray coordinates: m' = Tinv m, so p = Tinv^T p'.
         let mut coefficients_vector = to_normalised.transpose() * normalised_conic;
         let norm = coefficients_vector.norm();
-        if !(norm > 0.0) || !norm.is_finite() {
+        if !exceeds(norm, 0.0) || !norm.is_finite() {
             return Err(CalibrationError::NumericalFailure { stage: "conic fit" });
         }
         coefficients_vector /= norm;

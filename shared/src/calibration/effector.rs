@@ -3,6 +3,7 @@
 //! `d` (both from the robot's kinematics), then `base_from_disc` from point pairs known in
 //! both frames with the rotation constrained to the form of Eq 14.
 
+use super::exceeds;
 use nalgebra::{Vector2, Vector3};
 
 use super::error::CalibrationError;
@@ -29,7 +30,7 @@ pub fn depth_roots(m0: Vector2<f64>, m1: Vector2<f64>, d: f64, s: f64) -> DepthR
     let f = d * m0.dot(&difference);
     let g = (m0.norm_squared() + 1.0) * d * d - s * s;
     let valid = |z1: f64| z1.is_finite() && z1 > 0.0 && z1 + d > 0.0;
-    if !(e > 1e-18) {
+    if !exceeds(e, 1e-18) {
         // Both points on one ray: Eq 10 degenerates to 2 F z1 + G = 0.
         if f != 0.0 {
             let z1 = -g / (2.0 * f);
@@ -118,7 +119,7 @@ impl BaseFromDiscFit {
         let cyy = bydy - n * mean_base.y * mean_disc.y;
         let [xx, _, yy] = self.sum_disc_outer_xy;
         let spread = xx + yy - n * (mean_disc.x * mean_disc.x + mean_disc.y * mean_disc.y);
-        if !(spread > 1e-12) {
+        if !exceeds(spread, 1e-12) {
             return Err(CalibrationError::NumericalFailure {
                 stage: "base_from_disc (points coincide in the disc plane; Eq 15 needs a horizontal offset)",
             });

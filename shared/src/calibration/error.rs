@@ -49,8 +49,9 @@ pub enum CalibrationError {
     CameraBelowDisc,
     /// The conveyor angles absorbed so far span less than `needed_rad`: heights are unobservable.
     InsufficientRotation { span_rad: f64, needed_rad: f64 },
-    /// Eq 10 has no root with both end-effector points in front of the camera in any usable
-    /// sighting (`frame` = index of the first such effector sighting among those absorbed).
+    /// No end-effector sighting has a unique root of Eq 10 with both points in front of the
+    /// camera (none real, none valid, or two valid ones); `frame` = index of the first such
+    /// sighting among those stored.
     NoValidDepthRoot { frame: u32 },
     /// A linear system of `stage` was singular or a result came out non-finite.
     NumericalFailure { stage: &'static str },
@@ -108,7 +109,7 @@ impl fmt::Display for CalibrationError {
             ),
             CalibrationError::NoValidDepthRoot { frame } => write!(
                 f,
-                "effector sighting {frame}: Eq 10 has no root with both points in front of the camera"
+                "effector sighting {frame}: Eq 10 has no unique root with both points in front of the camera"
             ),
             CalibrationError::NumericalFailure { stage } => {
                 write!(f, "numerical failure in {stage}: singular system or non-finite result")

@@ -5,10 +5,12 @@
 //! One concept per module:
 //! - [`conic`]: Step 2, recursive least-squares ellipse fit with normalisation.
 //! - [`virtual_rotation`]: Steps 1, 3, 4 (`R_k`, `R_z`, `R_y`), camera height and pose.
+//! - [`homography`]: beyond the paper, a theta-aware start that also works on short arcs.
 //! - [`part`]: Eqs 3 to 8, feature points with heights by least squares over all frames.
 //! - [`effector`]: Eqs 10 to 15, end-effector depths and `base_from_disc`.
 //! - [`model`], [`pinhole`]: the workcell model and the contract's camera.
 //! - [`refine`]: robust Levenberg-Marquardt bundle adjustment (maximum likelihood).
+//! - [`uncertainty`]: standard deviations of the refined estimate.
 //! - [`store`], [`records`]: bounded, thinned storage of observations.
 //! - [`calibrator`]: [`SelfCalibrator`], the incremental estimator tying it together.
 
@@ -17,14 +19,22 @@ pub mod config;
 pub mod conic;
 pub mod effector;
 pub mod error;
+pub mod homography;
 pub mod model;
 pub mod part;
 pub mod pinhole;
 pub mod records;
 pub mod refine;
 pub mod store;
+pub mod uncertainty;
 pub mod virtual_rotation;
+
+/// `value > threshold`, false for NaN: `!exceeds(x, t)` rejects NaN along with small values.
+pub(crate) fn exceeds(value: f64, threshold: f64) -> bool {
+    value > threshold
+}
 
 pub use calibrator::{FirmwareCalibrator, HostCalibrator, SelfCalibrator};
 pub use config::CalibrationConfig;
 pub use error::{CalibrationError, ConicKind};
+pub use uncertainty::EstimateUncertainty;

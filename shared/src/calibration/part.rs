@@ -4,6 +4,7 @@
 //! lines meet at the point (Eq 8). Solving Eq 8 by least squares over all frames, not only
 //! two, averages the pixel noise over the whole revolution.
 
+use super::exceeds;
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
 use super::error::CalibrationError;
@@ -78,7 +79,7 @@ impl FeatureSystem {
             })?;
         let diagonal_ratio =
             cholesky.l().m33 * cholesky.l().m33 / self.normal.m33.max(f64::MIN_POSITIVE);
-        if !(diagonal_ratio > 1e-10) {
+        if !exceeds(diagonal_ratio, 1e-10) {
             return Err(CalibrationError::NumericalFailure {
                 stage: "part localisation (Eq 8)",
             });
@@ -105,7 +106,7 @@ pub fn intersect_two_lines(
     let db = b1 - b2;
     let da = a1 - a2;
     let denominator = db.norm_squared();
-    if !(denominator > 1e-18) {
+    if !exceeds(denominator, 1e-18) {
         return Err(CalibrationError::NumericalFailure {
             stage: "part localisation (Eq 8, two frames)",
         });

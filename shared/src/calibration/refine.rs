@@ -349,13 +349,30 @@ pub fn refine(
     let (mut normal, _) = normal_equations(problem, &model, &unit);
     for i in 0..PARAMETERS {
         if frozen(problem, i) {
-            if let Some(e) = normal.get_mut((i, i)) {
-                *e = 1.0;
+            for j in 0..PARAMETERS {
+                let value = if i == j { 1.0 } else { 0.0 };
+                if let Some(e) = normal.get_mut((i, j)) {
+                    *e = value;
+                }
+                if let Some(e) = normal.get_mut((j, i)) {
+                    *e = value;
+                }
             }
         }
     }
     let variance = (rms_px * rms_px / 2.0).max(1e-30);
-    let covariance = normal.try_inverse().map(|inverse| inverse * variance);
+    let covariance = normal.try_inverse().map(|inverse| {
+        let mut scaled = inverse * variance;
+        // Frozen parameters are known exactly.
+        for i in 0..PARAMETERS {
+            if frozen(problem, i) {
+                if let Some(e) = scaled.get_mut((i, i)) {
+                    *e = 0.0;
+                }
+            }
+        }
+        scaled
+    });
     Ok(Refined {
         model,
         rms_px,

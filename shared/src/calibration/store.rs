@@ -29,18 +29,18 @@ impl<T: Copy, const N: usize> ThinningStore<T, N> {
     pub fn offer(&mut self, item: T) {
         let index = self.offered;
         self.offered = self.offered.saturating_add(1);
-        if N == 0 || index % self.stride != 0 {
+        if N == 0 || !index.is_multiple_of(self.stride) {
             return;
         }
         if self.items.is_full() {
             let mut position = 0usize;
             self.items.retain(|_| {
-                let keep = position % 2 == 0;
+                let keep = position.is_multiple_of(2);
                 position += 1;
                 keep
             });
             self.stride = self.stride.saturating_mul(2);
-            if index % self.stride != 0 {
+            if !index.is_multiple_of(self.stride) {
                 return;
             }
         }

@@ -6,6 +6,7 @@
 //! `H = f L / l` with `l` in pixels), and a point at height `h` above the disc lies at depth
 //! `H - h` in the virtual camera (Eq 12).
 
+use super::exceeds;
 use nalgebra::{Matrix3, Rotation3, Vector2, Vector3};
 
 use super::conic::Conic;
@@ -60,7 +61,14 @@ impl VirtualRotation {
         if g == 0.0 || !g.is_finite() {
             return Err(numerical);
         }
-        let alpha = libm::atan(d_aligned / (2.0 * g));
+        let alpha_from_centre = libm::atan(d_aligned / (2.0 * g));
+        // The same tilt from the quadratic terms, which a long arc determines best: after
+        // R_y(beta) the x^2 and y^2 coefficients must be equal (a circle):
+        // (g - c) t^2 + d' t + (a - c) = 0 with t = tan(beta). Its two roots are the cone's
+        // two circular sections; the one nearer the centre-based tilt is the disc.
+        let (a, c) = (conic_z.m11, conic_z.m22);
+        let alpha = closest_root(g - c, d_aligned, a - c, -alpha_from_centre)
+            .map_or(alpha_from_centre, |t| -libm::atan(t));
         let rotation_y = Rotation3::from_axis_angle(&Vector3::y_axis(), -alpha);
         let virtual_from_camera = rotation_y * rotation_z * rotation_k;
         // The image is now a circle: a (x^2 + y^2) + d x + e y + g = 0.
@@ -71,7 +79,7 @@ impl VirtualRotation {
         }
         let centre_virtual = Vector2::new(-circle.m13 / a, -circle.m23 / a);
         let radius_squared = centre_virtual.norm_squared() - circle.m33 / a;
-        if !(radius_squared > 0.0) {
+        if !exceeds(radius_squared, 0.0) {
             return Err(numerical);
         }
         let radius = libm::sqrt(radius_squared);
@@ -83,6 +91,31 @@ impl VirtualRotation {
             virtual_from_camera,
             centre_virtual,
             radius,
+            height_m,
+        })
+    }
+
+    /// The virtual rotation of a camera whose pose in the disc frame is known (with the disc X
+    /// axis along the virtual image's X, i.e. `gamma = 0` in [`disc_from_virtual`]):
+    /// `R = V(0) disc_from_camera`, `O_V = -V(0) c`.
+    pub fn from_pose(
+        disc_from_camera: &Rotation3<f64>,
+        camera_centre_disc: &Vector3<f64>,
+        reference_radius_m: f64,
+    ) -> Result<Self, CalibrationError> {
+        let axes = virtual_from_disc_rotation(0.0);
+        let virtual_from_camera =
+            Rotation3::from_matrix_unchecked(axes * disc_from_camera.matrix());
+        let origin_virtual = -(axes * camera_centre_disc);
+        let height_m = origin_virtual.z;
+        if !(height_m > 0.0 && height_m.is_finite()) {
+            return Err(CalibrationError::CameraBelowDisc);
+        }
+        let centre_virtual = Vector2::new(origin_virtual.x / height_m, origin_virtual.y / height_m);
+        Ok(Self {
+            virtual_from_camera,
+            centre_virtual,
+            radius: reference_radius_m / height_m,
             height_m,
         })
     }
@@ -102,6 +135,25 @@ impl VirtualRotation {
     pub fn disc_origin_virtual(&self) -> Vector3<f64> {
         Vector3::new(self.centre_virtual.x, self.centre_virtual.y, 1.0) * self.height_m
     }
+}
+
+/// The root of `p t^2 + q t + r = 0` whose arctangent is nearest `target` (radians).
+fn closest_root(p: f64, q: f64, r: f64, target: f64) -> Option<f64> {
+    let discriminant = q * q - 4.0 * p * r;
+    if discriminant.is_nan() || discriminant < 0.0 || p == 0.0 {
+        return None;
+    }
+    let root = libm::sqrt(discriminant);
+    let w = -(q + if q >= 0.0 { root } else { -root }) / 2.0;
+    let first = w / p;
+    let second = if w != 0.0 { r / w } else { first };
+    let miss = |t: f64| libm::fabs(libm::atan(t) - target);
+    let best = if miss(first) <= miss(second) {
+        first
+    } else {
+        second
+    };
+    best.is_finite().then_some(best)
 }
 
 /// `R Q R^T`: the conic matrix seen through rays rotated by `R`.

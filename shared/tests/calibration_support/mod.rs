@@ -69,6 +69,8 @@ pub struct Scenario {
     pub feature_count: usize,
     /// Different heights per feature.
     pub non_planar: bool,
+    /// The calibration is told the disc's height in the base frame (experiment 2).
+    pub known_height: bool,
 }
 
 impl Scenario {
@@ -82,6 +84,7 @@ impl Scenario {
             effector_frames: 10,
             feature_count: 3,
             non_planar: false,
+            known_height: false,
         }
     }
     /// The paper's setting: 0.5 px, 256x256, 300 frames over one revolution, 5 % dropouts.
@@ -127,7 +130,7 @@ impl Workcell {
         let y_axis = z_axis.cross(&x_axis);
         let disc_from_camera =
             Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x_axis, y_axis, z_axis]));
-        let centre_r = rng.uniform(0.05, 0.25);
+        let centre_r = rng.uniform(0.15, 0.33);
         let centre_a = rng.uniform(-std::f64::consts::PI, std::f64::consts::PI);
         let centre = Vector3::new(centre_r * centre_a.cos(), centre_r * centre_a.sin(), 0.0);
         let base_height = rng.uniform(0.02, 0.1);
