@@ -6,7 +6,10 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{anyhow, Context};
-use shared::calibration::{CalibrationConfig, CalibrationError, HostCalibrator};
+use serde::Serialize;
+use shared::calibration::{
+    CalibrationConfig, CalibrationError, EstimateUncertainty, HostCalibrator,
+};
 use shared::observation::{CalibrationResult, LogHeader, ObservationFrame};
 
 use crate::accuracy::metrics::{compare, ErrorMetrics, METRIC_COLUMNS};
@@ -35,7 +38,44 @@ pub struct CalibrateArgs {
 /// Both estimates of one log; either may fail on its own.
 pub struct Calibration {
     pub refined: Result<CalibrationResult, CalibrationError>,
+    /// One-sigma uncertainties of the refined estimate (bundle-adjustment covariance).
+    pub refined_uncertainty: Option<EstimateUncertainty>,
     pub paper: Result<CalibrationResult, CalibrationError>,
+}
+
+/// The standard deviations printed beside the result (an extra key the contract's
+/// readers ignore; the contract welcomes more than `frames_used` and the RMS).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct UncertaintyReport {
+    pub camera_height_m: f64,
+    pub camera_position_m: [f64; 3],
+    pub camera_rotation_rad: [f64; 3],
+    pub part_position_m: [f64; 3],
+    pub base_yaw_rad: f64,
+    pub base_translation_m: [f64; 3],
+}
+
+impl From<&EstimateUncertainty> for UncertaintyReport {
+    fn from(u: &EstimateUncertainty) -> Self {
+        Self {
+            camera_height_m: u.camera_height_m,
+            camera_position_m: u.camera_position_m,
+            camera_rotation_rad: u.camera_rotation_rad,
+            part_position_m: u.part_position_m,
+            base_yaw_rad: u.base_yaw_rad,
+            base_translation_m: u.base_translation_m,
+        }
+    }
+}
+
+/// What `calibrate` prints on stdout: the contract's result, plus (for the refined
+/// estimate) its one-sigma uncertainties under `uncertainty_1sigma`.
+#[derive(Serialize)]
+struct PrintedResult<'a> {
+    #[serde(flatten)]
+    result: &'a CalibrationResult,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    uncertainty_1sigma: Option<UncertaintyReport>,
 }
 
 /// Line of the log that holds frame `index` (0-based; line 1 is the header).
@@ -67,8 +107,13 @@ where
             )
         })?;
     }
+    let (refined, refined_uncertainty) = match calibrator.estimate_with_uncertainty() {
+        Ok((result, uncertainty)) => (Ok(result), Some(uncertainty)),
+        Err(e) => (Err(e), None),
+    };
     Ok(Calibration {
-        refined: calibrator.estimate(),
+        refined,
+        refined_uncertainty,
         paper: calibrator.paper_estimate(),
     })
 }
@@ -129,10 +174,31 @@ pub fn run_calibrate(args: &CalibrateArgs) -> anyhow::Result<()> {
         .as_ref()
         .map_err(|e| anyhow!("calibration of {} failed: {e}", args.log.display()))?;
     let mut stdout = std::io::stdout().lock();
-    serde_json::to_writer_pretty(&mut stdout, result).context("writing the result")?;
+    let printed_result = PrintedResult {
+        result,
+        uncertainty_1sigma: if args.paper {
+            None
+        } else {
+            calibration
+                .refined_uncertainty
+                .as_ref()
+                .map(UncertaintyReport::from)
+        },
+    };
+    serde_json::to_writer_pretty(&mut stdout, &printed_result).context("writing the result")?;
     writeln!(stdout).context("writing the result")?;
 
     eprintln!("{}", summary(printed_label, result));
+    if let (Some(u), false) = (&calibration.refined_uncertainty, args.paper) {
+        let norm = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt() * 1000.0;
+        eprintln!(
+            "refined 1-sigma: camera height {:.3} mm, part position {:.3} mm, base translation {:.3} mm, base yaw {:.4} deg",
+            u.camera_height_m * 1000.0,
+            norm(u.part_position_m),
+            norm(u.base_translation_m),
+            u.base_yaw_rad.to_degrees()
+        );
+    }
     for (label, other) in [
         ("refined", &calibration.refined),
         ("paper", &calibration.paper),

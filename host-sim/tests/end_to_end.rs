@@ -53,6 +53,15 @@ fn cli_record_then_calibrate_noise_free_recovers_the_truth() {
     assert!(stderr.contains("refined estimate: camera"), "{stderr}");
     assert!(stderr.contains("refined errors: feature_mm"), "{stderr}");
     assert!(stderr.contains("paper errors: feature_mm"), "{stderr}");
+    assert!(
+        stderr.contains("refined 1-sigma: camera height"),
+        "{stderr}"
+    );
+    let printed: serde_json::Value = serde_json::from_slice(&calibrated.stdout).expect("JSON");
+    assert!(
+        printed["uncertainty_1sigma"]["base_yaw_rad"].is_number(),
+        "{printed}"
+    );
     assert_eq!(result.quality.frames_used, truth.result.quality.frames_used);
     assert_eq!(
         result.quality.effector_frames_used,
