@@ -317,12 +317,30 @@ fn effector_pairing_and_shape_errors() {
 
 #[test]
 fn non_finite_and_malformed_lines_name_the_line() {
-    // JSON has no NaN or infinity; an overflowing literal is refused by the JSON layer.
+    // JSON has no NaN or infinity, but a literal can overflow f64.
     assert_error(
         parse_with_edit(3, "\"t_s\":0.125", "\"t_s\":1e999"),
         3,
-        None,
-        "number out of range",
+        Some("t_s"),
+        "expected a finite number, got a number 1e+999",
+    );
+    assert_error(
+        parse_with_edit(2, "[158.0,97.2]", "[158.0,1e999]"),
+        2,
+        Some("part_px[1][1]"),
+        "expected a finite number, got a number 1e+999",
+    );
+    assert_error(
+        parse_with_edit(4, "[171.9,118.3]", "[-1e400,118.3]"),
+        4,
+        Some("reference_px[0]"),
+        "expected a finite number, got a number -1e+400",
+    );
+    assert_error(
+        parse_with_edit(1, "\"f_px\":290.0", "\"f_px\":2e308"),
+        1,
+        Some("camera.f_px"),
+        "expected a finite number",
     );
     assert_error(
         parse_with_edit(3, "\"t_s\":0.125", "\"t_s\":NaN"),

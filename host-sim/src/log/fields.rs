@@ -104,21 +104,38 @@ impl<'a> Record<'a> {
     }
 }
 
-/// `value` as a finite f64; `shape` is what the enclosing field expects, for the message.
+/// How a JSON value reads as a number.
+enum Numeric {
+    Finite(f64),
+    /// A JSON number outside the f64 range (JSON itself has no NaN or infinity).
+    NonFinite,
+    NotANumber,
+}
+
+fn numeric(value: &Value) -> Numeric {
+    match value.as_f64() {
+        Some(number) if number.is_finite() => Numeric::Finite(number),
+        Some(_) => Numeric::NonFinite,
+        None if value.is_number() => Numeric::NonFinite,
+        None => Numeric::NotANumber,
+    }
+}
+
+/// `value` as a finite f64; `shape` is what the field expects, for the message.
 fn finite_number(
     line: usize,
     path: &str,
     value: &Value,
     shape: &'static str,
 ) -> Result<f64, LogError> {
-    match value.as_f64() {
-        Some(number) if number.is_finite() => Ok(number),
-        Some(_) => Err(LogError::at_field(
+    match numeric(value) {
+        Numeric::Finite(number) => Ok(number),
+        Numeric::NonFinite => Err(LogError::at_field(
             line,
             path,
             LogProblem::NonFinite { got: got(value) },
         )),
-        None => Err(LogError::at_field(
+        Numeric::NotANumber => Err(LogError::at_field(
             line,
             path,
             LogProblem::WrongType {
@@ -129,7 +146,8 @@ fn finite_number(
     }
 }
 
-/// A JSON array of exactly `N` finite numbers; any deviation reports `shape` and the whole value.
+/// A JSON array of exactly `N` finite numbers; a wrong shape reports `shape` and the
+/// whole value, an out-of-range number names its element (`path[i]`).
 pub fn fixed_numbers<const N: usize>(
     line: usize,
     path: &str,
@@ -151,16 +169,18 @@ pub fn fixed_numbers<const N: usize>(
         return Err(wrong());
     }
     let mut numbers = [0.0; N];
-    for (slot, item) in numbers.iter_mut().zip(items) {
-        let number = item.as_f64().ok_or_else(wrong)?;
-        if !number.is_finite() {
-            return Err(LogError::at_field(
-                line,
-                path,
-                LogProblem::NonFinite { got: got(value) },
-            ));
-        }
-        *slot = number;
+    for (index, (slot, item)) in numbers.iter_mut().zip(items).enumerate() {
+        *slot = match numeric(item) {
+            Numeric::Finite(number) => number,
+            Numeric::NonFinite => {
+                return Err(LogError::at_field(
+                    line,
+                    format!("{path}[{index}]"),
+                    LogProblem::NonFinite { got: got(item) },
+                ))
+            }
+            Numeric::NotANumber => return Err(wrong()),
+        };
     }
     Ok(numbers)
 }
