@@ -322,26 +322,29 @@ fn non_finite_and_malformed_lines_name_the_line() {
         parse_with_edit(3, "\"t_s\":0.125", "\"t_s\":1e999"),
         3,
         Some("t_s"),
-        "expected a finite number, got a number 1e+999",
+        "expected a finite number, got a number 1e999 (outside the f64 range)",
     );
     assert_error(
         parse_with_edit(2, "[158.0,97.2]", "[158.0,1e999]"),
         2,
         Some("part_px[1][1]"),
-        "expected a finite number, got a number 1e+999",
+        "expected a finite number, got a number 1e999 (outside the f64 range)",
     );
     assert_error(
         parse_with_edit(4, "[171.9,118.3]", "[-1e400,118.3]"),
         4,
         Some("reference_px[0]"),
-        "expected a finite number, got a number -1e+400",
+        "expected a finite number, got a number -1e400 (outside the f64 range)",
     );
     assert_error(
         parse_with_edit(1, "\"f_px\":290.0", "\"f_px\":2e308"),
         1,
         Some("camera.f_px"),
-        "expected a finite number",
+        "expected a finite number, got a number 2e308 (outside the f64 range)",
     );
+    // In an unknown key an overflowing number is as harmless as any other value.
+    let log = parse_with_edit(3, "\"t_s\"", "\"gain\":1e999,\"t_s\"").expect("unknown key ignored");
+    assert_eq!(log.frames.len(), 4);
     assert_error(
         parse_with_edit(3, "\"t_s\":0.125", "\"t_s\":NaN"),
         3,

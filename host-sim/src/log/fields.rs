@@ -24,7 +24,19 @@ fn type_name(value: &Value) -> &'static str {
     }
 }
 
+/// Prefix of the string the reader puts in place of a number literal that
+/// overflows f64 (e.g. `1e999`), so the decoder can name the field it sits in.
+/// A NUL cannot occur in a string of a JSON log unless escaped, so it cannot clash.
+pub const OUT_OF_RANGE_MARKER: &str = "\u{0}out-of-range number ";
+
+fn out_of_range_literal(value: &Value) -> Option<&str> {
+    value.as_str()?.strip_prefix(OUT_OF_RANGE_MARKER)
+}
+
 fn got(value: &Value) -> String {
+    if let Some(literal) = out_of_range_literal(value) {
+        return format!("a number {literal} (outside the f64 range)");
+    }
     match value {
         Value::Null => "null".to_string(),
         other => format!("{} {}", type_name(other), describe_value(other)),
@@ -116,7 +128,7 @@ fn numeric(value: &Value) -> Numeric {
     match value.as_f64() {
         Some(number) if number.is_finite() => Numeric::Finite(number),
         Some(_) => Numeric::NonFinite,
-        None if value.is_number() => Numeric::NonFinite,
+        None if value.is_number() || out_of_range_literal(value).is_some() => Numeric::NonFinite,
         None => Numeric::NotANumber,
     }
 }

@@ -4,12 +4,14 @@
 //! with no newline) fails with a clear error instead of exhausting memory;
 //! frames are decoded one at a time so a long log never has to be held whole.
 
+use std::borrow::Cow;
 use std::io::{BufRead, Read};
 
 use serde_json::Value;
 use shared::observation::{LogHeader, ObservationFrame};
 
 use super::error::{LogError, LogProblem};
+use super::fields::OUT_OF_RANGE_MARKER;
 use super::record::{parse_frame, parse_header};
 use super::ObservationLog;
 
@@ -64,9 +66,55 @@ fn read_bounded_line<R: BufRead>(
     Ok(true)
 }
 
+/// Most overflowing number literals one line may hold before it is refused outright.
+const MAX_OUT_OF_RANGE_NUMBERS: usize = 16;
+
+fn is_number_byte(byte: u8) -> bool {
+    byte.is_ascii_digit() || matches!(byte, b'-' | b'+' | b'.' | b'e' | b'E')
+}
+
+/// Replaces the number literal around byte `column - 1` (serde_json's 1-based
+/// column of a "number out of range" error) by a marker string.
+fn mark_out_of_range(text: &[u8], column: usize) -> Option<Vec<u8>> {
+    let at = column.checked_sub(1)?;
+    if !is_number_byte(*text.get(at)?) {
+        return None;
+    }
+    let start = text
+        .get(..at)?
+        .iter()
+        .rposition(|b| !is_number_byte(*b))
+        .map_or(0, |i| i + 1);
+    let end = text
+        .get(at..)?
+        .iter()
+        .position(|b| !is_number_byte(*b))
+        .map_or(text.len(), |i| at + i);
+    let literal = std::str::from_utf8(text.get(start..end)?).ok()?;
+    let marker = serde_json::to_string(&format!("{OUT_OF_RANGE_MARKER}{literal}")).ok()?;
+    Some([text.get(..start)?, marker.as_bytes(), text.get(end..)?].concat())
+}
+
+/// Parses one line. JSON has no NaN or infinity, but a literal such as `1e999`
+/// overflows f64: such literals are marked so that the decoder reports them as
+/// non-finite numbers naming their field, rather than as a bare syntax error.
 fn parse_json(line: usize, bytes: &[u8]) -> Result<Value, LogError> {
-    serde_json::from_slice(bytes)
-        .map_err(|e| LogError::new(line, LogProblem::InvalidJson(e.to_string())))
+    let invalid =
+        |e: serde_json::Error| LogError::new(line, LogProblem::InvalidJson(e.to_string()));
+    let mut text = Cow::Borrowed(bytes);
+    for _ in 0..MAX_OUT_OF_RANGE_NUMBERS {
+        match serde_json::from_slice(&text) {
+            Ok(value) => return Ok(value),
+            Err(e) if e.to_string().starts_with("number out of range") => {
+                match mark_out_of_range(&text, e.column()) {
+                    Some(marked) => text = Cow::Owned(marked),
+                    None => return Err(invalid(e)),
+                }
+            }
+            Err(e) => return Err(invalid(e)),
+        }
+    }
+    serde_json::from_slice(&text).map_err(invalid)
 }
 
 fn is_blank(bytes: &[u8]) -> bool {
