@@ -360,7 +360,12 @@ fn non_finite_and_malformed_lines_name_the_line() {
         "expected a JSON object, got an array [1,2,3]",
     );
     lines[2] = "{\"type\":\"frame\"".to_string();
-    assert_error(parse(&lines), 3, None, "not valid JSON");
+    assert_error(
+        parse(&lines),
+        3,
+        None,
+        "not valid JSON: EOF while parsing an object at column 15",
+    );
     let bytes = [HEADER.as_bytes(), b"\n\xff\xfe\n"].concat();
     let error = read_log(Cursor::new(bytes)).expect_err("invalid UTF-8");
     assert_eq!(error.line, 2);

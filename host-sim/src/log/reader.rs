@@ -95,12 +95,23 @@ fn mark_out_of_range(text: &[u8], column: usize) -> Option<Vec<u8>> {
     Some([text.get(..start)?, marker.as_bytes(), text.get(end..)?].concat())
 }
 
+/// serde_json's message with its position as a column of this log line (its own
+/// "line 1" would read as the log's line 1).
+fn json_message(error: &serde_json::Error) -> String {
+    let text = error.to_string();
+    let message = text
+        .rfind(" at line ")
+        .and_then(|at| text.get(..at))
+        .unwrap_or(&text);
+    format!("{message} at column {}", error.column())
+}
+
 /// Parses one line. JSON has no NaN or infinity, but a literal such as `1e999`
 /// overflows f64: such literals are marked so that the decoder reports them as
 /// non-finite numbers naming their field, rather than as a bare syntax error.
 fn parse_json(line: usize, bytes: &[u8]) -> Result<Value, LogError> {
     let invalid =
-        |e: serde_json::Error| LogError::new(line, LogProblem::InvalidJson(e.to_string()));
+        |e: serde_json::Error| LogError::new(line, LogProblem::InvalidJson(json_message(&e)));
     let mut text = Cow::Borrowed(bytes);
     for _ in 0..MAX_OUT_OF_RANGE_NUMBERS {
         match serde_json::from_slice(&text) {
