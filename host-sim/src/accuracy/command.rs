@@ -71,7 +71,17 @@ pub fn run_accuracy(args: &AccuracyArgs) -> anyhow::Result<()> {
     progress.finish_and_clear();
 
     let rows = summarise(&outcomes);
-    let report = markdown(&rows, &outcomes, args.trials, args.seed);
+    let mut notes = vec![format!(
+        "Estimator: `shared::calibration::HostCalibrator` with {:?}.",
+        options.calibration
+    )];
+    if args.disc_height_known {
+        notes.push(
+            "Experiment 2 of the paper: the disc height in the base frame is given to the estimator."
+                .to_string(),
+        );
+    }
+    let report = markdown(&rows, &outcomes, args.trials, args.seed, &notes);
     write_outputs(&args.out, &report, &rows, &outcomes)?;
     println!("{report}");
     eprintln!(

@@ -242,11 +242,13 @@ fn tilt_breakdown(out: &mut String, outcomes: &[TrialOutcome], scenario: &str) {
     }
 }
 
+/// The markdown report; `notes` are extra lines under the title (e.g. the estimator's settings).
 pub fn markdown(
     rows: &[SummaryRow],
     outcomes: &[TrialOutcome],
     trials: usize,
     seed: u64,
+    notes: &[String],
 ) -> String {
     let mut out = String::new();
     let _ = writeln!(
@@ -258,6 +260,9 @@ pub fn markdown(
         "Cells: median / 95th percentile over the trials; a failed calibration counts as an \
          infinite error (`fail` when it reaches the percentile).\n"
     );
+    for note in notes {
+        let _ = writeln!(out, "{note}\n");
+    }
     let headers: Vec<String> = METRIC_COLUMNS.iter().map(|c| c.name.to_string()).collect();
     let _ = writeln!(
         out,
@@ -478,7 +483,7 @@ mod tests {
             Some(10.0)
         );
 
-        let report = markdown(&rows, &outcomes, 3, 1);
+        let report = markdown(&rows, &outcomes, 3, 1, &[]);
         assert!(
             report.contains("| paper | refined | 1/3 | 3.000 / fail |"),
             "{report}"
@@ -515,7 +520,7 @@ mod tests {
             "{}",
             lines[3]
         );
-        let report = markdown(&summarise(&outcomes), &outcomes, 2, 1);
+        let report = markdown(&summarise(&outcomes), &outcomes, 2, 1, &[]);
         assert!(
             report.contains("| paper/effector-5 | refined | 1/2 |"),
             "{report}"
