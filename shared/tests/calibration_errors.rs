@@ -136,6 +136,21 @@ fn invalid_header_is_refused() {
     let mut header = workcell.header();
     header.part_feature_count = 1;
     assert!(HostCalibrator::new(&header, CalibrationConfig::default()).is_err());
+    let bad_sigma = CalibrationConfig {
+        pixel_sigma: f64::NAN,
+        ..CalibrationConfig::default()
+    };
+    assert_eq!(
+        HostCalibrator::new(&workcell.header(), bad_sigma).unwrap_err(),
+        CalibrationError::InvalidConfig {
+            field: "pixel_sigma"
+        }
+    );
+    let bad_height = CalibrationConfig {
+        disc_height_in_base_m: Some(f64::INFINITY),
+        ..CalibrationConfig::default()
+    };
+    assert!(HostCalibrator::new(&workcell.header(), bad_height).is_err());
 }
 
 #[test]

@@ -124,3 +124,75 @@ fn recursive_conic_passes_through_every_reference_image() {
         }
     }
 }
+
+#[test]
+fn steep_effector_segments_with_two_depth_roots_are_resolved() {
+    // Every sighting but one shows a nearly vertical segment, for which Eq 10 may have two
+    // valid roots; the estimate must still be exact.
+    let mut rng = Rng::new(51);
+    let workcell = Workcell::random(&mut rng, 3, false);
+    let mut frames = workcell.record(&mut rng, &Scenario::exact());
+    let mut sightings = 0;
+    for frame in frames.iter_mut().filter(|f| f.effector.is_some()) {
+        let angle = sightings as f64 * 0.7;
+        let lean = if sightings == 0 { 0.1 } else { 0.004 };
+        let p0 = nalgebra::Vector3::new(0.25 * angle.cos(), 0.25 * angle.sin(), 0.1);
+        let p1 = p0
+            + nalgebra::Vector3::new(
+                lean * angle.cos(),
+                lean * angle.sin(),
+                if sightings == 0 { 0.0 } else { 0.1 },
+            );
+        let (Some(q0), Some(q1)) = (workcell.project(&p0), workcell.project(&p1)) else {
+            continue;
+        };
+        let (b0, b1) = (workcell.base_from_disc(&p0), workcell.base_from_disc(&p1));
+        frame.effector = Some(shared::observation::EffectorSighting {
+            px: [[q0.x, q0.y], [q1.x, q1.y]],
+            base_m: [[b0.x, b0.y, b0.z], [b1.x, b1.y, b1.z]],
+        });
+        sightings += 1;
+    }
+    assert!(sightings >= 5);
+    // Check that the scenario really has ambiguous sightings (in the true virtual camera).
+    use shared::calibration::effector::{depth_roots, DepthRoots};
+    use shared::calibration::pinhole::Pinhole;
+    use shared::calibration::virtual_rotation::VirtualRotation;
+    let rotation = VirtualRotation::from_pose(
+        &workcell.disc_from_camera,
+        &workcell.camera_centre_disc,
+        0.4,
+    )
+    .unwrap();
+    let pinhole = Pinhole::new(&workcell.intrinsics);
+    let ambiguous = frames
+        .iter()
+        .filter_map(|f| f.effector.as_ref())
+        .filter(|s| {
+            let m = |i: usize| {
+                rotation
+                    .to_virtual(pinhole.ray(nalgebra::Vector2::new(s.px[i][0], s.px[i][1])))
+                    .unwrap()
+            };
+            let (b0, b1) = (
+                nalgebra::Vector3::from(s.base_m[0]),
+                nalgebra::Vector3::from(s.base_m[1]),
+            );
+            matches!(
+                depth_roots(m(0), m(1), b1.z - b0.z, (b1 - b0).norm()),
+                DepthRoots::Ambiguous(_)
+            )
+        })
+        .count();
+    assert!(ambiguous >= 3, "{ambiguous}");
+    let mut calibrator =
+        HostCalibrator::new(&workcell.header(), CalibrationConfig::default()).unwrap();
+    frames
+        .iter()
+        .for_each(|frame| calibrator.push(frame).unwrap());
+    let errors = Errors::of(&calibrator.estimate().unwrap(), &workcell);
+    assert!(
+        errors.max_metres() < 1e-4 && errors.max_radians() < 1e-4,
+        "{errors:?}"
+    );
+}

@@ -10,7 +10,7 @@ use super::conic::{Conic, ConicFit};
 use super::effector::{depth_roots, wrap_angle, BaseFromDiscFit, DepthRoots};
 use super::error::CalibrationError;
 use super::homography::{pose_from_plane, PlanePoint, PlanePose};
-use super::model::WorkcellModel;
+use super::model::{rotation_z, WorkcellModel};
 use super::part::{intersect_two_lines, line_residual, FeatureSystem, VirtualGeometry};
 use super::pinhole::Pinhole;
 use super::records::{to_f32, to_vector, EffectorRecord, FrameRecord, PixelF32};
@@ -54,6 +54,14 @@ pub type FirmwareCalibrator = SelfCalibrator<96, 16>;
 /// The host's instance: 1024 frames, 256 effector sightings (117 224 B on x86-64).
 pub type HostCalibrator = SelfCalibrator<1024, 256>;
 
+/// A sighting's two points in the disc frame, as far as Eq 10 decides them.
+enum SightingPoints {
+    Resolved([Vector3<f64>; 2]),
+    /// Two physically valid roots of Eq 10: both candidate pairs.
+    Ambiguous([[Vector3<f64>; 2]; 2]),
+    Invalid,
+}
+
 fn finite(pixel: &PixelPoint) -> bool {
     pixel.iter().all(|v| v.is_finite())
 }
@@ -84,17 +92,29 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
                 field: "part_feature_count",
             });
         }
-        if !(config.pixel_sigma.is_finite() && config.pixel_sigma > 0.0) {
-            return Err(CalibrationError::InvalidHeader {
-                field: "config.pixel_sigma",
+        let positive = |value: f64| value.is_finite() && value > 0.0;
+        for (value, field) in [
+            (config.pixel_sigma, "pixel_sigma"),
+            (config.huber_k, "huber_k"),
+            (config.outlier_gate_sigma, "outlier_gate_sigma"),
+            (config.min_rotation_rad, "min_rotation_rad"),
+        ] {
+            if !positive(value) {
+                return Err(CalibrationError::InvalidConfig { field });
+            }
+        }
+        if config.max_iterations == 0 {
+            return Err(CalibrationError::InvalidConfig {
+                field: "max_iterations",
             });
         }
-        if let Some(height) = config.disc_height_in_base_m {
-            if !height.is_finite() {
-                return Err(CalibrationError::InvalidHeader {
-                    field: "config.disc_height_in_base_m",
-                });
-            }
+        if config
+            .disc_height_in_base_m
+            .is_some_and(|height| !height.is_finite())
+        {
+            return Err(CalibrationError::InvalidConfig {
+                field: "disc_height_in_base_m",
+            });
         }
         Ok(Self {
             header: *header,
@@ -251,12 +271,15 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
     }
 
     /// The paper's own method for comparison: the virtual rotation from the RLS conic and the
-    /// mean centre image, Eq 8 with two frames, Eq 15 with one robot pose.
+    /// mean centre image (both with gross outliers gated out), Eq 8 with two frames, Eq 15
+    /// with one robot pose.
     pub fn paper_estimate(&self) -> Result<CalibrationResult, CalibrationError> {
         self.check_reference_count()?;
         self.check_rotation_span()?;
-        let conic = self.conic.solve()?;
-        let centre = self.mean_centre_ray(None)?;
+        // The RLS conic and mean centre image, with gross outliers gated out first (the
+        // paper's data had none; without the gate one stray detection can spoil Step 2).
+        let conic = self.robust_conic()?;
+        let centre = self.robust_centre_ray()?;
         let rotation = VirtualRotation::from_conic(&conic, centre, self.header.reference_radius_m)?;
         let gamma = self.disc_axis_angle(&rotation, true)?;
         let geometry = VirtualGeometry { rotation, gamma };
@@ -303,13 +326,13 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         let mut first_invalid = None;
         for (position, sighting) in self.effectors.items().iter().enumerate() {
             match self.sighting_disc_points(&geometry, sighting)? {
-                Some(pair) => {
+                SightingPoints::Resolved(pair) => {
                     for (p_disc, which) in pair.iter().zip(0..2) {
                         fit.add(*p_disc, sighting.base_point(which));
                     }
                     break;
                 }
-                None => {
+                SightingPoints::Ambiguous(_) | SightingPoints::Invalid => {
                     first_invalid.get_or_insert(position);
                 }
             }
@@ -411,36 +434,69 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         Ok(centre_ray)
     }
 
-    /// Re-fits the conic on the stored reference points without gross outliers (Sampson
-    /// distance gating around the RLS conic), keeping the RLS answer when that fails.
+    /// Re-fits the conic on the stored reference points without gross outliers. The start is
+    /// the best of a few exact five-point conics through detections spread evenly along the
+    /// track (a deterministic consensus search: one stray detection far from the ellipse
+    /// drags an algebraic fit badly, a five-point fit through clean points not at all), or the
+    /// RLS conic when those fail; then Sampson-distance gating and refitting.
     fn robust_conic(&self) -> Result<Conic, CalibrationError> {
-        let mut conic = self.conic.solve()?;
-        let floor = 4.0 * self.config.pixel_sigma;
-        for _ in 0..4 {
-            let mut squares = 0.0;
-            let mut count = 0u32;
-            for reference in self.frames.items().iter().filter_map(|f| f.reference) {
-                let distance = conic.sampson_distance(self.pinhole.ray(to_vector(reference)))
-                    * self.pinhole.f_px;
-                squares += distance * distance;
-                count += 1;
-            }
-            if count < 5 {
-                break;
-            }
-            let rms = libm::sqrt(squares / f64::from(count));
-            let gate = (3.5 * rms).max(floor);
-            let mut fit = ConicFit::new();
-            for reference in self.frames.items().iter().filter_map(|f| f.reference) {
-                let ray = self.pinhole.ray(to_vector(reference));
-                if conic.sampson_distance(ray) * self.pinhole.f_px <= gate {
-                    fit.add(ray, 1.0);
+        let rls = self.conic.solve();
+        let rays = || {
+            self.frames
+                .items()
+                .iter()
+                .filter_map(|f| f.reference)
+                .map(|pixel| self.pinhole.ray(to_vector(pixel)))
+        };
+        let count = rays().count();
+        let f_px = self.pinhole.f_px;
+        let consensus_gate_px = (4.0 * self.config.pixel_sigma).max(2.0);
+        let support = |conic: &Conic| {
+            rays()
+                .filter(|ray| conic.sampson_distance(*ray) * f_px <= consensus_gate_px)
+                .count()
+        };
+        let mut best: Option<(usize, Conic)> =
+            rls.as_ref().ok().map(|conic| (support(conic), *conic));
+        if count >= 10 {
+            const TRIALS: usize = 16;
+            let stride = (count / (5 * TRIALS)).max(1);
+            for trial in 0..TRIALS {
+                let mut fit = ConicFit::new();
+                for k in 0..5 {
+                    let index = (trial * stride + k * count / 5) % count;
+                    if let Some(ray) = rays().nth(index) {
+                        fit.add(ray, 1.0);
+                    }
+                }
+                if let Ok(candidate) = fit.solve() {
+                    let candidate_support = support(&candidate);
+                    if best.is_none_or(|(best_support, _)| candidate_support > best_support) {
+                        best = Some((candidate_support, candidate));
+                    }
                 }
             }
-            match fit.solve() {
-                Ok(next) => conic = next,
-                Err(_) => break,
+        }
+        // No usable start: the RLS conic's own error says what is wrong with the track.
+        let Some((_, mut conic)) = best else {
+            return rls;
+        };
+        let floor_px = 4.0 * self.config.pixel_sigma;
+        let mut gate_px = 2.0 * consensus_gate_px;
+        for _ in 0..4 {
+            let mut fit = ConicFit::new();
+            let (mut squares, mut kept) = (0.0, 0u32);
+            for ray in rays() {
+                let distance = conic.sampson_distance(ray) * f_px;
+                if distance <= gate_px {
+                    fit.add(ray, 1.0);
+                    squares += distance * distance;
+                    kept += 1;
+                }
             }
+            // The points the gate keeps are the track: if they form no ellipse, say so.
+            conic = fit.solve()?;
+            gate_px = (3.5 * libm::sqrt(squares / f64::from(kept.max(1)))).max(floor_px);
         }
         Ok(conic)
     }
@@ -531,31 +587,34 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         })
     }
 
-    /// Disc-frame positions of a sighting's two points (Eq 10, or the known disc height),
-    /// `None` when Eq 10 has no unique valid root.
+    /// Disc-frame positions of a sighting's two points (Eq 10, or the known disc height).
     fn sighting_disc_points(
         &self,
         geometry: &VirtualGeometry,
         sighting: &EffectorRecord,
-    ) -> Result<Option<[Vector3<f64>; 2]>, CalibrationError> {
+    ) -> Result<SightingPoints, CalibrationError> {
         let rotation = &geometry.rotation;
         let m0 =
             self.virtual_point(rotation, to_f32([sighting.pixel(0).x, sighting.pixel(0).y]))?;
         let m1 =
             self.virtual_point(rotation, to_f32([sighting.pixel(1).x, sighting.pixel(1).y]))?;
         let (b0, b1) = (sighting.base_point(0), sighting.base_point(1));
-        let depths = match self.config.disc_height_in_base_m {
+        let pair =
+            |(z0, z1): (f64, f64)| [geometry.disc_point(m0, z0), geometry.disc_point(m1, z1)];
+        Ok(match self.config.disc_height_in_base_m {
             // Experiment 2: heights above the disc are known, so depths are H - h directly.
-            Some(disc_height) => Some((
+            Some(disc_height) => SightingPoints::Resolved(pair((
                 rotation.height_m - (b0.z - disc_height),
                 rotation.height_m - (b1.z - disc_height),
-            )),
+            ))),
             None => match depth_roots(m0, m1, b1.z - b0.z, (b1 - b0).norm()) {
-                DepthRoots::Unique(z0, z1) => Some((z0, z1)),
-                DepthRoots::Ambiguous(_) | DepthRoots::None => None,
+                DepthRoots::Unique(z0, z1) => SightingPoints::Resolved(pair((z0, z1))),
+                DepthRoots::Ambiguous([first, second]) => {
+                    SightingPoints::Ambiguous([pair(first), pair(second)])
+                }
+                DepthRoots::None => SightingPoints::Invalid,
             },
-        };
-        Ok(depths.map(|(z0, z1)| [geometry.disc_point(m0, z0), geometry.disc_point(m1, z1)]))
+        })
     }
 
     /// The starting point of the refinement: robust virtual rotation, all-frame Eq 8 and
@@ -666,20 +725,23 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
     }
 
     /// Eq 15 over every sighting with a usable depth, least squares (see [`BaseFromDiscFit`]).
+    /// Sightings with two valid roots of Eq 10 join in a second pass, with the root whose
+    /// points agree better with the first pass's `base_from_disc`.
     fn locate_base(
         &self,
         geometry: &VirtualGeometry,
     ) -> Result<(f64, Vector3<f64>), CalibrationError> {
+        let known_height = self.config.disc_height_in_base_m;
         let mut fit = BaseFromDiscFit::default();
         let mut first_invalid = None;
         for (position, sighting) in self.effectors.items().iter().enumerate() {
             match self.sighting_disc_points(geometry, sighting)? {
-                Some(pair) => {
+                SightingPoints::Resolved(pair) => {
                     for (p_disc, which) in pair.iter().zip(0..2) {
                         fit.add(*p_disc, sighting.base_point(which));
                     }
                 }
-                None => {
+                SightingPoints::Ambiguous(_) | SightingPoints::Invalid => {
                     first_invalid.get_or_insert(position);
                 }
             }
@@ -687,7 +749,38 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         if fit.count() == 0 {
             return Err(self.no_effector_error(first_invalid));
         }
-        fit.solve(self.config.disc_height_in_base_m)
+        let (yaw, translation) = fit.solve(known_height)?;
+        let disc_from_base = |p_base: Vector3<f64>| rotation_z(-yaw) * (p_base - translation);
+        let mut resolved_more = false;
+        for sighting in self.effectors.items() {
+            if let SightingPoints::Ambiguous(candidates) =
+                self.sighting_disc_points(geometry, sighting)?
+            {
+                let miss = |pair: &[Vector3<f64>; 2]| -> f64 {
+                    pair.iter()
+                        .zip(0..2)
+                        .map(|(p_disc, which)| {
+                            (p_disc - disc_from_base(sighting.base_point(which))).norm()
+                        })
+                        .sum()
+                };
+                let [first, second] = candidates;
+                let best = if miss(&first) <= miss(&second) {
+                    first
+                } else {
+                    second
+                };
+                for (p_disc, which) in best.iter().zip(0..2) {
+                    fit.add(*p_disc, sighting.base_point(which));
+                }
+                resolved_more = true;
+            }
+        }
+        if resolved_more {
+            fit.solve(known_height)
+        } else {
+            Ok((yaw, translation))
+        }
     }
 
     fn rms_reprojection(&self, model: &WorkcellModel) -> f64 {

@@ -147,3 +147,70 @@ pub fn wrap_angle(angle: f64) -> f64 {
         wrapped
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Virtual image points of two disc-frame points seen from a virtual camera at height `h`
+    /// straight above the origin (depth = h - z).
+    fn image(p: Vector3<f64>, h: f64) -> (Vector2<f64>, f64) {
+        let depth = h - p.z;
+        (Vector2::new(p.x / depth, p.y / depth), depth)
+    }
+
+    #[test]
+    fn a_level_segment_has_a_unique_root_equal_to_the_true_depth() {
+        let (p0, p1) = (Vector3::new(0.1, 0.05, 0.2), Vector3::new(0.2, 0.05, 0.2));
+        let ((m0, z0), (m1, z1)) = (image(p0, 2.5), image(p1, 2.5));
+        match depth_roots(m0, m1, p1.z - p0.z, (p1 - p0).norm()) {
+            DepthRoots::Unique(a, b) => assert!((a - z0).abs() < 1e-12 && (b - z1).abs() < 1e-12),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_steep_segment_can_be_ambiguous_and_one_root_is_the_truth() {
+        // G = (|m0|^2 + 1) d^2 - s^2 > 0 for a steep segment: two roots of one sign.
+        let (p0, p1) = (
+            Vector3::new(0.30, 0.0, 0.10),
+            Vector3::new(0.31, 0.0, 0.1995),
+        );
+        let ((m0, z0), (m1, _)) = (image(p0, 2.5), image(p1, 2.5));
+        match depth_roots(m0, m1, p1.z - p0.z, (p1 - p0).norm()) {
+            DepthRoots::Ambiguous(roots) => {
+                assert!(
+                    roots.iter().any(|(a, _)| (a - z0).abs() < 1e-9),
+                    "{roots:?}"
+                );
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_vertical_segment_off_the_radial_line_has_no_root() {
+        let m0 = Vector2::new(0.1, 0.05);
+        let m1 = Vector2::new(0.2, -0.1);
+        assert_eq!(depth_roots(m0, m1, -0.1, 0.1), DepthRoots::None);
+    }
+
+    #[test]
+    fn yaw_and_translation_from_exact_pairs() {
+        let yaw = 2.5;
+        let translation = Vector3::new(0.9, -0.4, -0.2);
+        let mut fit = BaseFromDiscFit::default();
+        for p in [
+            Vector3::new(0.1, 0.2, 0.3),
+            Vector3::new(-0.2, 0.1, 0.1),
+            Vector3::new(0.3, -0.3, 0.4),
+        ] {
+            fit.add(p, rotation_z(yaw) * p + translation);
+        }
+        let (found_yaw, found_translation) = fit.solve(None).unwrap();
+        assert!((wrap_angle(found_yaw - yaw)).abs() < 1e-12);
+        assert!((found_translation - translation).norm() < 1e-12);
+        let (_, pinned) = fit.solve(Some(-0.25)).unwrap();
+        assert_eq!(pinned.z, -0.25);
+    }
+}

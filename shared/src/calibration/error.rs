@@ -18,6 +18,8 @@ pub enum ConicKind {
 pub enum CalibrationError {
     /// The log header cannot describe a workcell (`field` names the bad value).
     InvalidHeader { field: &'static str },
+    /// A [`super::CalibrationConfig`] value is out of range (`field` names it).
+    InvalidConfig { field: &'static str },
     /// A frame holds NaN or an infinity in `field` (frame = index of the offered frame, from 0).
     NonFiniteValue { frame: u32, field: &'static str },
     /// `part_px` holds `found` points but the header announced `expected`.
@@ -72,6 +74,9 @@ impl fmt::Display for CalibrationError {
         match *self {
             CalibrationError::InvalidHeader { field } => {
                 write!(f, "invalid log header: field `{field}` is out of range")
+            }
+            CalibrationError::InvalidConfig { field } => {
+                write!(f, "invalid calibration config: `{field}` is out of range")
             }
             CalibrationError::NonFiniteValue { frame, field } => {
                 write!(f, "frame {frame}: field `{field}` is not a finite number")

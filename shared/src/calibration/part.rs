@@ -23,6 +23,10 @@ impl VirtualGeometry {
     /// `p_rotating.xy = a - b h`. In the virtual camera the point is at depth `H - h`,
     /// so `p_virtual = (H - h)(m, 1)`; the disc frame follows by the reflection
     /// `V(gamma)` about the disc centre and the rotating frame by `Rz(-theta)`.
+    /// Eqs 3 to 6 write the same affine line with `a`, `b` from the frame's own image of the
+    /// reference point; taking the frame's orientation from the encoder angle instead is
+    /// equivalent for exact data, less noisy, and works in frames where the reference point
+    /// was not detected.
     pub fn affine_line(&self, theta: f64, m_virtual: Vector2<f64>) -> (Vector2<f64>, Vector2<f64>) {
         let (s, c) = libm::sincos(self.gamma);
         let reflection = Matrix2::new(c, s, s, -c);

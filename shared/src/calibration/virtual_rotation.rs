@@ -34,9 +34,6 @@ impl VirtualRotation {
         centre_ray: Vector2<f64>,
         reference_radius_m: f64,
     ) -> Result<Self, CalibrationError> {
-        let numerical = CalibrationError::NumericalFailure {
-            stage: "virtual rotation",
-        };
         // Step 1: R_k turns the ray through the disc centre onto the optical axis.
         let centre_direction = Vector3::new(centre_ray.x, centre_ray.y, 1.0);
         let rotation_k = Rotation3::rotation_between(&centre_direction, &Vector3::z())
@@ -59,7 +56,10 @@ impl VirtualRotation {
         let d_aligned = 2.0 * conic_z.m13;
         let g = conic_z.m33;
         if g == 0.0 || !g.is_finite() {
-            return Err(numerical);
+            return Err(CalibrationError::NumericalFailure {
+                stage:
+                    "virtual rotation (Step 4: the conic passes through the disc centre's image)",
+            });
         }
         let alpha_from_centre = libm::atan(d_aligned / (2.0 * g));
         // The same tilt from the quadratic terms, which a long arc determines best: after
@@ -74,18 +74,21 @@ impl VirtualRotation {
         // The image is now a circle: a (x^2 + y^2) + d x + e y + g = 0.
         let circle = rotate_conic(&conic.matrix(), &virtual_from_camera);
         let a = (circle.m11 + circle.m22) / 2.0;
+        let not_a_circle = CalibrationError::NumericalFailure {
+            stage: "virtual rotation (Step 4: the rotated conic is not a real circle; arc too short or too noisy)",
+        };
         if a == 0.0 || !a.is_finite() {
-            return Err(numerical);
+            return Err(not_a_circle);
         }
         let centre_virtual = Vector2::new(-circle.m13 / a, -circle.m23 / a);
         let radius_squared = centre_virtual.norm_squared() - circle.m33 / a;
         if !exceeds(radius_squared, 0.0) {
-            return Err(numerical);
+            return Err(not_a_circle);
         }
         let radius = libm::sqrt(radius_squared);
         let height_m = reference_radius_m / radius;
         if !height_m.is_finite() {
-            return Err(numerical);
+            return Err(not_a_circle);
         }
         Ok(Self {
             virtual_from_camera,
