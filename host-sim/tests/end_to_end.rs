@@ -200,3 +200,18 @@ fn paper_scenario_meets_the_accuracy_targets() {
     let refined_base: Vec<f64> = all().map(|e| e.base_translation_mm).collect();
     assert!(median(&refined_base) < median(&paper_base));
 }
+
+/// The conveyor may turn either way and a log may cover only part of a
+/// revolution (contract): the refined estimate still succeeds with sane errors.
+#[test]
+fn reverse_and_quarter_turn_logs_calibrate() {
+    for name in ["reverse", "quarter-turn"] {
+        let outcomes = run(Scenario::named(name).expect("scenario"), 6, 11);
+        for errors in refined(&outcomes) {
+            // Loose bounds, about twice the 95th percentiles of 100 workcells.
+            assert!(errors.base_translation_mm < 30.0, "{name}: {errors}");
+            assert!(errors.camera_height_mm < 12.0, "{name}: {errors}");
+            assert!(errors.base_yaw_deg < 0.8, "{name}: {errors}");
+        }
+    }
+}
