@@ -78,34 +78,26 @@ struct PrintedResult<'a> {
     uncertainty_1sigma: Option<UncertaintyReport>,
 }
 
-/// Line of the log that holds frame `index` (0-based; line 1 is the header).
-fn frame_line(index: usize) -> usize {
-    index + 2
-}
-
-/// Pushes every frame into a host-sized calibrator, then estimates. A frame the
-/// reader or the calibrator refuses stops the run with an error naming its line.
+/// Pushes every `(line, frame)` into a host-sized calibrator, then estimates. A
+/// frame the reader or the calibrator refuses stops the run with an error naming its line.
 pub fn calibrate_frames<I>(
     header: &LogHeader,
     frames: I,
     config: CalibrationConfig,
 ) -> anyhow::Result<Calibration>
 where
-    I: IntoIterator<Item = Result<ObservationFrame, LogError>>,
+    I: IntoIterator<Item = Result<(usize, ObservationFrame), LogError>>,
 {
     // About 117 kB (see `SelfCalibrator`): boxed so worker threads keep small stacks.
     let mut calibrator = Box::new(
         HostCalibrator::new(header, config)
             .map_err(|e| anyhow!("line 1: the calibration refuses the header: {e}"))?,
     );
-    for (index, frame) in frames.into_iter().enumerate() {
-        let frame = frame?;
-        calibrator.push(&frame).map_err(|e| {
-            anyhow!(
-                "line {}: the calibration refuses the frame: {e}",
-                frame_line(index)
-            )
-        })?;
+    for numbered in frames {
+        let (line, frame) = numbered?;
+        calibrator
+            .push(&frame)
+            .map_err(|e| anyhow!("line {line}: the calibration refuses the frame: {e}"))?;
     }
     let (refined, refined_uncertainty) = match calibrator.estimate_with_uncertainty() {
         Ok((result, uncertainty)) => (Ok(result), Some(uncertainty)),
@@ -122,7 +114,13 @@ pub fn calibrate_log(
     log: &ObservationLog,
     config: CalibrationConfig,
 ) -> anyhow::Result<Calibration> {
-    calibrate_frames(&log.header, log.frames.iter().cloned().map(Ok), config)
+    // In memory there are no blank lines: frame i is on line i + 2 of its file.
+    let numbered = log
+        .frames
+        .iter()
+        .enumerate()
+        .map(|(index, frame)| Ok((index + 2, frame.clone())));
+    calibrate_frames(&log.header, numbered, config)
 }
 
 fn summary(label: &str, result: &CalibrationResult) -> String {
@@ -159,7 +157,7 @@ pub fn run_calibrate(args: &CalibrateArgs) -> anyhow::Result<()> {
     let truth = args.truth.as_deref().map(read_truth_file).transpose()?;
     let reader = open_log(&args.log)?;
     let header = *reader.header();
-    let calibration = calibrate_frames(&header, reader, config)
+    let calibration = calibrate_frames(&header, reader.numbered(), config)
         .with_context(|| format!("in log {}", args.log.display()))?;
 
     let (printed, printed_label) = if args.paper {

@@ -215,3 +215,45 @@ fn reverse_and_quarter_turn_logs_calibrate() {
         }
     }
 }
+
+#[test]
+fn cli_names_the_file_line_of_a_frame_the_calibration_refuses() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let log = dir.path().join("cell.jsonl");
+    assert!(host_sim(&[
+        "record",
+        "--scenario",
+        "paper",
+        "--seed",
+        "8",
+        "-o",
+        path(&log)
+    ])
+    .status
+    .success());
+    let text = std::fs::read_to_string(&log).expect("log");
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    // Valid JSON per the contract, but Eq 10 needs two distinct effector points.
+    let coinciding = "\"effector_px\":[[100.0,100.0],[100.0,100.0]],\"effector_base_m\":[[0.5,0.1,0.7],[0.5,0.1,0.7]]";
+    let frame = lines
+        .iter()
+        .position(|l| {
+            l.contains("\"effector_px\":null,\"effector_base_m\":null")
+                && !l.contains("\"t_s\":0.0,")
+        })
+        .expect("a frame without the effector");
+    lines[frame] =
+        lines[frame].replace("\"effector_px\":null,\"effector_base_m\":null", coinciding);
+    // A blank line before it shifts its line number by one.
+    lines.insert(2, String::new());
+    std::fs::write(&log, lines.join("\n")).expect("write");
+
+    let calibrated = host_sim(&["calibrate", path(&log)]);
+    let stderr = String::from_utf8_lossy(&calibrated.stderr);
+    assert_eq!(calibrated.status.code(), Some(1), "{stderr}");
+    let expected = format!("line {}: the calibration refuses the frame", frame + 2);
+    assert!(
+        stderr.contains(&expected),
+        "wanted {expected:?} in {stderr}"
+    );
+}

@@ -16,7 +16,7 @@ use anyhow::Context;
 use shared::observation::{LogHeader, ObservationFrame};
 
 pub use error::{LogError, LogProblem};
-pub use reader::{read_log, LogReader, DEFAULT_MAX_LINE_BYTES};
+pub use reader::{read_log, LogReader, NumberedFrames, DEFAULT_MAX_LINE_BYTES};
 pub use writer::{write_log, LogWriter};
 
 /// A whole log held in memory: the header and the frames in file order.

@@ -208,6 +208,26 @@ impl<R: BufRead> Iterator for LogReader<R> {
     }
 }
 
+impl<R: BufRead> LogReader<R> {
+    /// Frames together with the line each came from (blank lines are skipped, so
+    /// a frame's line is not always its index + 2).
+    pub fn numbered(self) -> NumberedFrames<R> {
+        NumberedFrames(self)
+    }
+}
+
+/// Iterator of `(line, frame)`; see [`LogReader::numbered`].
+pub struct NumberedFrames<R>(LogReader<R>);
+
+impl<R: BufRead> Iterator for NumberedFrames<R> {
+    type Item = Result<(usize, ObservationFrame), LogError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let frame = self.0.next()?;
+        Some(frame.map(|frame| (self.0.line, frame)))
+    }
+}
+
 /// Reads a whole log into memory.
 pub fn read_log<R: BufRead>(input: R) -> Result<ObservationLog, LogError> {
     let mut reader = LogReader::new(input)?;
