@@ -1,30 +1,54 @@
 //! `host-sim`: the simulated workcell and the tools around the controller.
+//!
+//! Without a subcommand it runs the default workcell (see [`host_sim::demo`]).
+use std::process::ExitCode;
+
 use clap::{Parser, Subcommand};
+use host_sim::accuracy::command::{run_accuracy, AccuracyArgs};
+use host_sim::calibrate_cmd::{run_calibrate, CalibrateArgs};
+use host_sim::demo::{run_demo, DemoArgs};
 use host_sim::link;
+use host_sim::workcell::command::{run_record, RecordArgs};
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
 #[derive(Parser, Debug)]
 #[command(version, about)]
 struct Cli {
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
 }
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// The default workcell run (also what `host-sim` without a subcommand does).
+    Run(DemoArgs),
+    /// Record a synthetic observation log (and LOG.truth.json) from a random workcell.
+    Record(RecordArgs),
+    /// Calibrate from a log: result JSON on stdout, summary (and errors with --truth) on stderr.
+    Calibrate(CalibrateArgs),
+    /// Seeded Monte-Carlo accuracy over random workcells: markdown on stdout, CSV/JSON in --out.
+    Accuracy(AccuracyArgs),
     /// Handshake with the controller, exchange frames and check every reply.
     LinkCheck(link::cli::LinkCheckArgs),
 }
 
-fn main() -> std::process::ExitCode {
+fn main() -> ExitCode {
     let cli = Cli::parse();
-    match cli.command {
-        Command::LinkCheck(args) => match link::cli::run(&args) {
-            Ok(()) => std::process::ExitCode::SUCCESS,
-            Err(e) => {
-                eprintln!("link-check failed: {e}");
-                std::process::ExitCode::FAILURE
-            }
-        },
+    let outcome = match &cli.command {
+        None => run_demo(&DemoArgs::default()),
+        Some(Command::Run(args)) => run_demo(args),
+        Some(Command::Record(args)) => run_record(args),
+        Some(Command::Calibrate(args)) => run_calibrate(args),
+        Some(Command::Accuracy(args)) => run_accuracy(args),
+        Some(Command::LinkCheck(args)) => {
+            link::cli::run(args).map_err(|e| anyhow::anyhow!("link-check failed: {e}"))
+        }
+    };
+    match outcome {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("error: {error:#}");
+            ExitCode::FAILURE
+        }
     }
 }

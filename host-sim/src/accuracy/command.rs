@@ -1,0 +1,95 @@
+//! `host-sim accuracy`: the seeded Monte-Carlo run, one command.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use shared::calibration::CalibrationConfig;
+
+use super::harness::{plan_trials, run_trials, HarnessOptions};
+use super::report::{markdown, summarise, write_outputs};
+use crate::workcell::{Scenario, SCENARIO_NAMES};
+
+/// Monte-Carlo accuracy of the self-calibration over random workcells.
+#[derive(clap::Args, Debug)]
+pub struct AccuracyArgs {
+    /// Random workcells per scenario.
+    #[arg(long, default_value_t = 100)]
+    pub trials: usize,
+    /// Base seed; each trial's log is reproducible with `record --seed` (see trials.csv).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Scenarios to run (comma-separated); default all.
+    #[arg(long, value_delimiter = ',', default_values_t = SCENARIO_NAMES.map(String::from))]
+    pub scenarios: Vec<String>,
+    /// Effector-frame counts of the paper scenario's sweep (comma-separated; the flag
+    /// alone, with no value, runs no sweep).
+    #[arg(long, value_delimiter = ',', num_args = 0.., default_values_t = [5_usize, 20, 100])]
+    pub effector_sweep: Vec<usize>,
+    /// Experiment 2 of the paper: tell the estimator the true disc height in the base frame.
+    #[arg(long)]
+    pub disc_height_known: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Folder for report.md, trials.csv and summary.json.
+    #[arg(long, default_value = "accuracy-out")]
+    pub out: PathBuf,
+}
+
+pub fn run_accuracy(args: &AccuracyArgs) -> anyhow::Result<()> {
+    let mut scenarios = args
+        .scenarios
+        .iter()
+        .map(|name| Scenario::named(name.trim()))
+        .collect::<Result<Vec<_>, _>>()?;
+    scenarios.extend(
+        args.effector_sweep
+            .iter()
+            .map(|&count| Scenario::paper().with_effector_frames(count)),
+    );
+    let plans = plan_trials(&scenarios, args.trials, args.seed);
+    let options = HarnessOptions {
+        calibration: CalibrationConfig::default(),
+        disc_height_known: args.disc_height_known,
+    };
+
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(threads) = args.threads {
+        pool = pool.num_threads(threads);
+    }
+    let pool = pool.build().context("starting the worker threads")?;
+    let progress = ProgressBar::new(plans.len() as u64);
+    if let Ok(style) =
+        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} trials, eta {eta}")
+    {
+        progress.set_style(style);
+    }
+    let started = Instant::now();
+    let outcomes = pool.install(|| run_trials(&plans, &options, &progress));
+    progress.finish_and_clear();
+
+    let rows = summarise(&outcomes);
+    let mut notes = vec![format!(
+        "Estimator: `shared::calibration::HostCalibrator` with {:?}.",
+        options.calibration
+    )];
+    if args.disc_height_known {
+        notes.push(
+            "Experiment 2 of the paper: the disc height in the base frame is given to the estimator."
+                .to_string(),
+        );
+    }
+    let report = markdown(&rows, &outcomes, args.trials, args.seed, &notes);
+    write_outputs(&args.out, &report, &rows, &outcomes)?;
+    println!("{report}");
+    eprintln!(
+        "{} trials in {:.1} s on {} threads; report.md, trials.csv, summary.json in {}",
+        plans.len(),
+        started.elapsed().as_secs_f64(),
+        pool.current_num_threads(),
+        args.out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,529 @@
+//! Summaries of the Monte-Carlo outcomes: median and 95th percentile per
+//! scenario, method and metric; the accuracy targets; the effector-count sweep;
+//! written as a markdown report, a per-trial CSV and a JSON summary.
+
+use std::fmt::Write as _;
+use std::fs;
+use std::path::Path;
+
+use anyhow::Context;
+use serde::Serialize;
+
+use super::harness::{Method, TrialOutcome};
+use super::metrics::{ErrorMetrics, METRIC_COLUMNS};
+use super::stats::{median, percentile};
+
+#[derive(Debug, Clone, Serialize)]
+pub struct MetricSummary {
+    pub metric: &'static str,
+    pub unit: &'static str,
+    /// `None` (JSON null) when infinite: more than half (or 5 %) of the trials failed.
+    pub median: Option<f64>,
+    pub p95: Option<f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct SummaryRow {
+    pub scenario: String,
+    pub method: Method,
+    pub trials: usize,
+    pub failures: usize,
+    /// The first failure message, to start the diagnosis from.
+    pub first_failure: Option<String>,
+    pub metrics: Vec<MetricSummary>,
+}
+
+impl SummaryRow {
+    pub fn metric(&self, name: &str) -> Option<&MetricSummary> {
+        self.metrics.iter().find(|m| m.metric == name)
+    }
+}
+
+fn finite(value: Option<f64>) -> Option<f64> {
+    value.filter(|v| v.is_finite())
+}
+
+/// Groups outcomes by scenario (in first-seen order) and method.
+pub fn summarise(outcomes: &[TrialOutcome]) -> Vec<SummaryRow> {
+    let mut scenarios: Vec<&str> = Vec::new();
+    for outcome in outcomes {
+        if !scenarios.contains(&outcome.scenario.as_str()) {
+            scenarios.push(&outcome.scenario);
+        }
+    }
+    scenarios
+        .iter()
+        .flat_map(|scenario| {
+            Method::ALL.into_iter().map(move |method| {
+                let results: Vec<&Result<ErrorMetrics, String>> = outcomes
+                    .iter()
+                    .filter(|o| o.scenario == *scenario)
+                    .map(|o| o.errors(method))
+                    .collect();
+                let metrics = METRIC_COLUMNS
+                    .iter()
+                    .map(|column| {
+                        let values: Vec<f64> = results
+                            .iter()
+                            .map(|r| r.as_ref().map_or(f64::INFINITY, column.value))
+                            .collect();
+                        MetricSummary {
+                            metric: column.name,
+                            unit: column.unit,
+                            median: finite(median(&values)),
+                            p95: finite(percentile(&values, 0.95)),
+                        }
+                    })
+                    .collect();
+                SummaryRow {
+                    scenario: scenario.to_string(),
+                    method,
+                    trials: results.len(),
+                    failures: results.iter().filter(|r| r.is_err()).count(),
+                    first_failure: results.iter().find_map(|r| r.as_ref().err().cloned()),
+                    metrics,
+                }
+            })
+        })
+        .collect()
+}
+
+/// A 95th-percentile target of the issue.
+pub struct Target {
+    pub scenario: &'static str,
+    pub metric: &'static str,
+    pub p95_below: f64,
+}
+
+/// Paper scenario: 2 mm part position, 0.8 deg part yaw, 5.5 mm camera height,
+/// 15 mm base translation, 0.35 deg base yaw. Noise-free: every error below
+/// 0.1 mm and 0.01 deg.
+pub const TARGETS: [Target; 12] = [
+    Target {
+        scenario: "paper",
+        metric: "part_position_mm",
+        p95_below: 2.0,
+    },
+    Target {
+        scenario: "paper",
+        metric: "part_yaw_deg",
+        p95_below: 0.8,
+    },
+    Target {
+        scenario: "paper",
+        metric: "camera_height_mm",
+        p95_below: 5.5,
+    },
+    Target {
+        scenario: "paper",
+        metric: "base_translation_mm",
+        p95_below: 15.0,
+    },
+    Target {
+        scenario: "paper",
+        metric: "base_yaw_deg",
+        p95_below: 0.35,
+    },
+    Target {
+        scenario: "noise-free",
+        metric: "feature_mm",
+        p95_below: 0.1,
+    },
+    Target {
+        scenario: "noise-free",
+        metric: "part_position_mm",
+        p95_below: 0.1,
+    },
+    Target {
+        scenario: "noise-free",
+        metric: "part_yaw_deg",
+        p95_below: 0.01,
+    },
+    Target {
+        scenario: "noise-free",
+        metric: "camera_height_mm",
+        p95_below: 0.1,
+    },
+    Target {
+        scenario: "noise-free",
+        metric: "camera_rotation_deg",
+        p95_below: 0.01,
+    },
+    Target {
+        scenario: "noise-free",
+        metric: "base_translation_mm",
+        p95_below: 0.1,
+    },
+    Target {
+        scenario: "noise-free",
+        metric: "base_yaw_deg",
+        p95_below: 0.01,
+    },
+];
+
+/// Whether a target is met by the refined estimate; `None` if its scenario was not run.
+pub fn target_met(rows: &[SummaryRow], target: &Target) -> Option<(f64, bool)> {
+    let row = rows
+        .iter()
+        .find(|r| r.scenario == target.scenario && r.method == Method::Refined)?;
+    let p95 = row
+        .metric(target.metric)
+        .and_then(|m| m.p95)
+        .unwrap_or(f64::INFINITY);
+    Some((p95, p95 < target.p95_below))
+}
+
+fn cell(value: Option<f64>) -> String {
+    match value {
+        Some(v) if v < 0.01 => format!("{v:.2e}"),
+        Some(v) if v < 100.0 => format!("{v:.3}"),
+        Some(v) => format!("{v:.1}"),
+        None => "fail".to_string(),
+    }
+}
+
+fn median_p95(summary: Option<&MetricSummary>) -> String {
+    summary.map_or("-".to_string(), |m| {
+        format!("{} / {}", cell(m.median), cell(m.p95))
+    })
+}
+
+/// Effector-sweep rows are scenarios named `FAMILY/effector-N`.
+fn effector_count(scenario: &str) -> Option<usize> {
+    scenario.split_once("/effector-")?.1.parse().ok()
+}
+
+/// Camera-tilt bins of the tilt breakdown, degrees.
+const TILT_BINS_DEG: [(f64, f64); 3] = [(0.0, 10.0), (10.0, 20.0), (20.0, 35.0 + 1e-9)];
+
+/// The part's errors (refined) by camera tilt, for the scenario `scenario`.
+fn tilt_breakdown(out: &mut String, outcomes: &[TrialOutcome], scenario: &str) {
+    let of_scenario: Vec<&TrialOutcome> =
+        outcomes.iter().filter(|o| o.scenario == scenario).collect();
+    if of_scenario.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        out,
+        "\n## {scenario}: refined part errors by camera tilt\n\nNear a vertical view the camera's tilt and \
+         offset look alike, so feature heights (and with them the part position) are weakly observable.\n"
+    );
+    let _ = writeln!(
+        out,
+        "| camera tilt | trials | feature_mm | part_position_mm | camera_height_mm |"
+    );
+    let _ = writeln!(out, "|---|---|---|---|---|");
+    for (low, high) in TILT_BINS_DEG {
+        let in_bin: Vec<&Result<ErrorMetrics, String>> = of_scenario
+            .iter()
+            .filter(|o| (low..high).contains(&o.camera_tilt_deg))
+            .map(|o| &o.refined)
+            .collect();
+        let summary = |value: fn(&ErrorMetrics) -> f64| {
+            let values: Vec<f64> = in_bin
+                .iter()
+                .map(|r| r.as_ref().map_or(f64::INFINITY, value))
+                .collect();
+            format!(
+                "{} / {}",
+                cell(finite(median(&values))),
+                cell(finite(percentile(&values, 0.95)))
+            )
+        };
+        let _ = writeln!(
+            out,
+            "| {low:.0} to {:.0} deg | {} | {} | {} | {} |",
+            high.floor(),
+            in_bin.len(),
+            summary(|m| m.feature_mm),
+            summary(|m| m.part_position_mm),
+            summary(|m| m.camera_height_mm)
+        );
+    }
+}
+
+/// The markdown report; `notes` are extra lines under the title (e.g. the estimator's settings).
+pub fn markdown(
+    rows: &[SummaryRow],
+    outcomes: &[TrialOutcome],
+    trials: usize,
+    seed: u64,
+    notes: &[String],
+) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "# Self-calibration accuracy ({trials} random workcells per scenario, seed {seed})\n"
+    );
+    let _ = writeln!(
+        out,
+        "Cells: median / 95th percentile over the trials; a failed calibration counts as an \
+         infinite error (`fail` when it reaches the percentile).\n"
+    );
+    for note in notes {
+        let _ = writeln!(out, "{note}\n");
+    }
+    let headers: Vec<String> = METRIC_COLUMNS.iter().map(|c| c.name.to_string()).collect();
+    let _ = writeln!(
+        out,
+        "| scenario | method | failures | {} |",
+        headers.join(" | ")
+    );
+    let _ = writeln!(out, "|---|---|---|{}", "---|".repeat(headers.len()));
+    for row in rows
+        .iter()
+        .filter(|r| effector_count(&r.scenario).is_none())
+    {
+        let cells: Vec<String> = METRIC_COLUMNS
+            .iter()
+            .map(|c| median_p95(row.metric(c.name)))
+            .collect();
+        let _ = writeln!(
+            out,
+            "| {} | {} | {}/{} | {} |",
+            row.scenario,
+            row.method.name(),
+            row.failures,
+            row.trials,
+            cells.join(" | ")
+        );
+    }
+
+    let _ = writeln!(out, "\n## Targets (refined estimate, 95th percentile)\n");
+    let _ = writeln!(out, "| scenario | metric | target | measured | met |");
+    let _ = writeln!(out, "|---|---|---|---|---|");
+    for target in &TARGETS {
+        if let Some((p95, met)) = target_met(rows, target) {
+            let _ = writeln!(
+                out,
+                "| {} | {} | < {} | {} | {} |",
+                target.scenario,
+                target.metric,
+                target.p95_below,
+                cell(Some(p95).filter(|v| v.is_finite())),
+                if met { "yes" } else { "NO" }
+            );
+        }
+    }
+
+    let sweep: Vec<&SummaryRow> = rows
+        .iter()
+        .filter(|r| effector_count(&r.scenario).is_some())
+        .collect();
+    if !sweep.is_empty() {
+        let _ = writeln!(
+            out,
+            "\n## Base pose against the number of frames showing the end effector\n"
+        );
+        let _ = writeln!(
+            out,
+            "| scenario | method | failures | base_translation_mm | base_yaw_deg |"
+        );
+        let _ = writeln!(out, "|---|---|---|---|---|");
+        for row in sweep {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {}/{} | {} | {} |",
+                row.scenario,
+                row.method.name(),
+                row.failures,
+                row.trials,
+                median_p95(row.metric("base_translation_mm")),
+                median_p95(row.metric("base_yaw_deg"))
+            );
+        }
+    }
+
+    tilt_breakdown(&mut out, outcomes, "paper");
+
+    let failures: Vec<&SummaryRow> = rows.iter().filter(|r| r.failures > 0).collect();
+    if !failures.is_empty() {
+        let _ = writeln!(out, "\n## First failure per scenario and method\n");
+        for row in failures {
+            let _ = writeln!(
+                out,
+                "- {} / {}: {}",
+                row.scenario,
+                row.method.name(),
+                row.first_failure.as_deref().unwrap_or("?")
+            );
+        }
+    }
+    out
+}
+
+fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_string()
+    }
+}
+
+/// One row per trial and method; failed rows leave the metric columns empty.
+pub fn trials_csv(outcomes: &[TrialOutcome]) -> String {
+    let mut out =
+        String::from("scenario,trial,seed,effector_frames,camera_tilt_deg,method,status,message");
+    for column in &METRIC_COLUMNS {
+        out.push(',');
+        out.push_str(column.name);
+    }
+    out.push('\n');
+    for outcome in outcomes {
+        for method in Method::ALL {
+            let (status, message, values) = match outcome.errors(method) {
+                Ok(errors) => (
+                    "ok",
+                    String::new(),
+                    METRIC_COLUMNS
+                        .iter()
+                        .map(|c| format!("{:.9}", (c.value)(errors)))
+                        .collect::<Vec<_>>(),
+                ),
+                Err(message) => (
+                    "failed",
+                    message.clone(),
+                    vec![String::new(); METRIC_COLUMNS.len()],
+                ),
+            };
+            let _ = writeln!(
+                out,
+                "{},{},{},{},{:.3},{},{},{},{}",
+                csv_field(&outcome.scenario),
+                outcome.trial,
+                outcome.seed,
+                outcome.effector_frames,
+                outcome.camera_tilt_deg,
+                method.name(),
+                status,
+                csv_field(&message),
+                values.join(",")
+            );
+        }
+    }
+    out
+}
+
+/// Writes `report.md`, `trials.csv` and `summary.json` into `directory` (created if needed).
+pub fn write_outputs(
+    directory: &Path,
+    report: &str,
+    rows: &[SummaryRow],
+    outcomes: &[TrialOutcome],
+) -> anyhow::Result<()> {
+    fs::create_dir_all(directory)
+        .with_context(|| format!("cannot create output folder {}", directory.display()))?;
+    let write = |name: &str, text: &str| {
+        let path = directory.join(name);
+        fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))
+    };
+    write("report.md", report)?;
+    write("trials.csv", &trials_csv(outcomes))?;
+    let json = serde_json::to_string_pretty(rows).context("serialising the summary")?;
+    write("summary.json", &json)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn errors(scale: f64) -> ErrorMetrics {
+        ErrorMetrics {
+            feature_mm: scale,
+            part_position_mm: scale,
+            part_yaw_deg: scale / 10.0,
+            camera_height_mm: scale,
+            camera_rotation_deg: scale / 10.0,
+            base_translation_mm: scale,
+            base_yaw_deg: scale / 100.0,
+        }
+    }
+
+    fn outcome(
+        scenario: &str,
+        trial: usize,
+        refined: Result<ErrorMetrics, String>,
+    ) -> TrialOutcome {
+        TrialOutcome {
+            scenario: scenario.to_string(),
+            trial,
+            seed: trial as u64,
+            effector_frames: 7,
+            camera_tilt_deg: 12.0,
+            refined,
+            paper: Ok(errors(10.0)),
+        }
+    }
+
+    #[test]
+    fn failures_count_as_infinite_errors_in_the_summary() {
+        let outcomes = [
+            outcome("paper", 0, Ok(errors(1.0))),
+            outcome("paper", 1, Ok(errors(3.0))),
+            outcome("paper", 2, Err("no ellipse, frame 4".to_string())),
+        ];
+        let rows = summarise(&outcomes);
+        assert_eq!(rows.len(), 2);
+        let refined = &rows[0];
+        assert_eq!(
+            (refined.method, refined.trials, refined.failures),
+            (Method::Refined, 3, 1)
+        );
+        assert_eq!(
+            refined.first_failure.as_deref(),
+            Some("no ellipse, frame 4")
+        );
+        let position = refined.metric("part_position_mm").expect("metric");
+        assert_eq!(position.median, Some(3.0));
+        assert_eq!(position.p95, None);
+        let target = &TARGETS[0];
+        assert_eq!(target_met(&rows, target), Some((f64::INFINITY, false)));
+        assert_eq!(
+            rows[1].metric("part_position_mm").and_then(|m| m.p95),
+            Some(10.0)
+        );
+
+        let report = markdown(&rows, &outcomes, 3, 1, &[]);
+        assert!(
+            report.contains("| paper | refined | 1/3 | 3.000 / fail |"),
+            "{report}"
+        );
+        assert!(
+            report.contains("| paper | part_position_mm | < 2 | fail | NO |"),
+            "{report}"
+        );
+        assert!(report.contains("- paper / refined: no ellipse, frame 4"));
+        assert!(
+            !report.contains("end effector\n"),
+            "no sweep section without sweep rows"
+        );
+    }
+
+    #[test]
+    fn csv_has_one_row_per_trial_and_method_with_quoted_messages() {
+        let outcomes = [
+            outcome("paper/effector-5", 0, Ok(errors(2.0))),
+            outcome(
+                "paper/effector-5",
+                1,
+                Err("frame 3: \"x\", bad".to_string()),
+            ),
+        ];
+        let csv = trials_csv(&outcomes);
+        let lines: Vec<&str> = csv.lines().collect();
+        assert_eq!(lines.len(), 5);
+        let columns = lines[0].split(',').count();
+        assert_eq!(columns, 8 + METRIC_COLUMNS.len());
+        assert!(lines[1].starts_with("paper/effector-5,0,0,7,12.000,refined,ok,,2.000000000,"));
+        assert!(
+            lines[3].contains(",refined,failed,\"frame 3: \"\"x\"\", bad\","),
+            "{}",
+            lines[3]
+        );
+        let report = markdown(&summarise(&outcomes), &outcomes, 2, 1, &[]);
+        assert!(
+            report.contains("| paper/effector-5 | refined | 1/2 |"),
+            "{report}"
+        );
+    }
+}

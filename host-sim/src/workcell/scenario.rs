@@ -1,0 +1,165 @@
+//! Named recording scenarios: how many frames over how much of a revolution,
+//! how noisy the detections are, how often the end effector shows, and how the
+//! part's feature heights are drawn.
+
+use std::fmt;
+
+use serde::{Deserialize, Serialize};
+
+/// How the heights of the part's feature points above the disc are drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum FeatureHeights {
+    /// All features on the part's flat top at one unknown height in `[min_m, max_m]`
+    /// (the paper's experiments: parts 4 cm and 7 cm high).
+    FlatTop { min_m: f64, max_m: f64 },
+    /// Features at clearly different heights: feature 0 near `min_m`, feature 1
+    /// near `max_m` (at least `min_spread_m` apart), the others anywhere between.
+    Spread {
+        min_m: f64,
+        max_m: f64,
+        min_spread_m: f64,
+    },
+}
+
+/// Everything that defines how a synthetic log is recorded (the workcell itself is random).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Scenario {
+    pub name: String,
+    /// Number of camera frames in the log.
+    pub frames: usize,
+    /// Conveyor travel over the log in revolutions (negative: clockwise).
+    pub revolutions: f64,
+    pub frame_rate_hz: f64,
+    /// Standard deviation of the Gaussian noise on each pixel coordinate.
+    pub pixel_sigma_px: f64,
+    /// Probability that a detection (centre, reference, the part as a whole, each
+    /// effector pair) is missing from a frame.
+    pub dropout_probability: f64,
+    /// Probability that a detected point is a gross outlier (uniform over the image).
+    pub outlier_probability: f64,
+    /// Number of frames that show the end effector, drawn uniformly from this range.
+    pub effector_frames_min: usize,
+    pub effector_frames_max: usize,
+    pub part_feature_count: usize,
+    pub feature_heights: FeatureHeights,
+}
+
+/// Scenario names accepted by [`Scenario::named`], in report order.
+pub const SCENARIO_NAMES: [&str; 6] = [
+    "noise-free",
+    "paper",
+    "noisy",
+    "quarter-turn",
+    "non-planar",
+    "reverse",
+];
+
+/// Unknown scenario name.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnknownScenario(pub String);
+
+impl fmt::Display for UnknownScenario {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "unknown scenario \"{}\" (known: {})",
+            self.0,
+            SCENARIO_NAMES.join(", ")
+        )
+    }
+}
+
+impl std::error::Error for UnknownScenario {}
+
+impl Scenario {
+    /// The paper's experiment (Section 5): 0.5 px noise, about 300 frames over one
+    /// revolution, 5 % dropouts, the end effector seen in 5 to 20 frames, a flat-topped
+    /// part 2 to 10 cm high.
+    pub fn paper() -> Self {
+        Self {
+            name: "paper".to_string(),
+            frames: 300,
+            revolutions: 1.0,
+            frame_rate_hz: 30.0,
+            pixel_sigma_px: 0.5,
+            dropout_probability: 0.05,
+            outlier_probability: 0.0,
+            effector_frames_min: 5,
+            effector_frames_max: 20,
+            part_feature_count: 3,
+            feature_heights: FeatureHeights::FlatTop {
+                min_m: 0.02,
+                max_m: 0.10,
+            },
+        }
+    }
+
+    pub fn named(name: &str) -> Result<Self, UnknownScenario> {
+        let paper = Self::paper();
+        let scenario = match name {
+            "paper" => paper,
+            "noise-free" => Self {
+                pixel_sigma_px: 0.0,
+                dropout_probability: 0.0,
+                ..paper
+            },
+            "noisy" => Self {
+                pixel_sigma_px: 1.0,
+                dropout_probability: 0.10,
+                outlier_probability: 0.01,
+                ..paper
+            },
+            // Same frame count, but the conveyor only turns a quarter revolution:
+            // the reference point's ellipse is seen along a quarter of its arc.
+            "quarter-turn" => Self {
+                revolutions: 0.25,
+                ..paper
+            },
+            "non-planar" => Self {
+                part_feature_count: 4,
+                feature_heights: FeatureHeights::Spread {
+                    min_m: 0.0,
+                    max_m: 0.15,
+                    min_spread_m: 0.08,
+                },
+                ..paper
+            },
+            // The contract lets the conveyor turn either way; estimators may not assume a sign.
+            "reverse" => Self {
+                revolutions: -1.0,
+                ..paper
+            },
+            other => return Err(UnknownScenario(other.to_string())),
+        };
+        Ok(Self {
+            name: name.to_string(),
+            ..scenario
+        })
+    }
+
+    /// The same scenario with the end effector seen in exactly `count` frames.
+    pub fn with_effector_frames(self, count: usize) -> Self {
+        Self {
+            name: format!("{}/effector-{count}", self.name),
+            effector_frames_min: count,
+            effector_frames_max: count,
+            ..self
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_listed_name_resolves_and_unknown_names_are_refused() {
+        for name in SCENARIO_NAMES {
+            let scenario = Scenario::named(name);
+            assert_eq!(scenario.map(|s| s.name), Ok(name.to_string()));
+        }
+        let err = Scenario::named("sideways").err();
+        assert!(err.is_some_and(|e| e.to_string().contains("sideways")));
+    }
+}
