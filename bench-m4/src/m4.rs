@@ -6,9 +6,10 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
 use nalgebra::{UnitQuaternion, Vector3};
 use shared::control::{
-    orientation_error, solve_damped, solve_pose, AxisGains, CircleTrajectory, ControllerConfig,
-    DampingConfig, Joints, TaskGains, TaskReference, TaskSpaceController, TaskSpaceModel,
+    orientation_error, solve_damped, AxisGains, CircleTrajectory, ControllerConfig, DampingConfig,
+    Joints, TaskGains, TaskReference, TaskSpaceController, TaskSpaceModel,
 };
+use shared::planning::{solve_ik, IkConfig};
 use shared::robot::drive::SIMULATOR_COULOMB_WIDTH;
 use shared::robot::{DriveOptions, Puma560};
 
@@ -67,7 +68,13 @@ fn run() -> Option<()> {
     };
     let reference: TaskReference<f32> = circle.reference(0.3);
     let seed = Joints::new(0.2_f32, 0.0, -2.1, 0.0, -1.0, -2.9);
-    let q = solve_pose(&model, &reference.base_from_flange, &seed, 1e-5, 100).ok()?
+    let q = solve_ik(
+        &model,
+        &reference.base_from_flange,
+        &seed,
+        &IkConfig::default(),
+    )
+    .ok()?
         + Joints::repeat(1e-3);
     let qd = Joints::new(0.3_f32, -0.2, 0.4, 0.01, -0.3, 0.2);
     let mut controller = TaskSpaceController::new(config()?).ok()?;

@@ -8,11 +8,21 @@ use std::hint::black_box;
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::{RealField, UnitQuaternion, Vector3};
 use shared::control::{
-    solve_damped, solve_pose, AxisGains, CircleTrajectory, ControllerConfig, DampingConfig, Joints,
-    TaskGains, TaskReference, TaskSpaceController, TaskSpaceModel,
+    solve_damped, AxisGains, CircleTrajectory, ControllerConfig, DampingConfig, Joints, TaskGains,
+    TaskReference, TaskSpaceController, TaskSpaceModel,
 };
+use shared::planning::{solve_ik, IkConfig};
 use shared::robot::drive::SIMULATOR_COULOMB_WIDTH;
 use shared::robot::{DriveOptions, Puma560};
+
+/// Converged to round-off, so the benches start exactly on the reference.
+fn tight_ik<T: RealField + Copy>() -> IkConfig<T> {
+    IkConfig {
+        position_tolerance_m: nalgebra::convert(1e-12),
+        orientation_tolerance_rad: nalgebra::convert(1e-12),
+        ..IkConfig::default()
+    }
+}
 
 fn config<T: RealField + Copy>() -> ControllerConfig<T> {
     let gains = AxisGains::from_poles(nalgebra::convert(40.0), T::one(), nalgebra::convert(10.0))
@@ -47,12 +57,11 @@ fn state() -> (Puma560<f64>, Joints<f64>, Joints<f64>, TaskReference<f64>) {
         orientation: UnitQuaternion::from_axis_angle(&Vector3::x_axis(), core::f64::consts::PI),
     };
     let reference = circle.reference(0.3);
-    let q = solve_pose(
+    let q = solve_ik(
         &model,
         &reference.base_from_flange,
         &Joints::new(0.2, 0.0, -2.1, 0.0, -1.0, -2.9),
-        1e-12,
-        100,
+        &tight_ik(),
     )
     .expect("reachable");
     let q = q + Joints::repeat(1e-3);

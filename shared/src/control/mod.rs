@@ -10,14 +10,12 @@
 //!   action, torque saturation and the gravity-hold fallback.
 //! - [`trig`]: full-precision sin/cos without f64 (libm's f32 routines run f64 inside).
 //! - [`trajectory`]: the circle reference (a part riding the disc).
-//! - [`inverse_kinematics`]: damped Newton IK to start on a reference.
 //! - [`error`]: typed errors.
 
 pub mod computed_torque;
 pub mod dls;
 pub mod error;
 pub mod gains;
-pub mod inverse_kinematics;
 pub mod model;
 pub mod orientation;
 pub mod puma;
@@ -28,7 +26,6 @@ pub use computed_torque::{ControlOutput, ControllerConfig, TaskReference, TaskSp
 pub use dls::{solve_damped, DampedSolution, DampingConfig};
 pub use error::{ControlError, ControlInput, ControlStage};
 pub use gains::{AxisGains, TaskGains};
-pub use inverse_kinematics::solve_pose;
 pub use model::{Joints, TaskKinematics, TaskSpaceModel};
 pub use orientation::orientation_error;
 pub use trajectory::CircleTrajectory;

@@ -9,6 +9,7 @@
 use nalgebra::{convert, Isometry3, Matrix6, RealField, Vector6};
 
 use super::PlanError;
+use crate::control::orientation_error;
 use crate::robot::{JointVector, Puma560};
 
 /// Iteration limits and tolerances.
@@ -36,10 +37,11 @@ impl<T: RealField + Copy> Default for IkConfig<T> {
 }
 
 /// The pose error `[p_target - p; log(R_target R^T)]`, in the base frame, the
-/// units of the geometric Jacobian's rows.
+/// units of the geometric Jacobian's rows (the same SO(3) error Eq 23's
+/// controller uses).
 pub fn pose_error<T: RealField + Copy>(target: &Isometry3<T>, pose: &Isometry3<T>) -> Vector6<T> {
     let dp = target.translation.vector - pose.translation.vector;
-    let dr = (target.rotation * pose.rotation.inverse()).scaled_axis();
+    let dr = orientation_error(&target.rotation, &pose.rotation);
     Vector6::new(dp.x, dp.y, dp.z, dr.x, dr.y, dr.z)
 }
 

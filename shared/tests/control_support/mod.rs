@@ -5,9 +5,10 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 use shared::control::{
-    orientation_error, solve_pose, AxisGains, CircleTrajectory, ControlOutput, ControllerConfig,
-    DampingConfig, Joints, TaskGains, TaskReference, TaskSpaceController,
+    orientation_error, AxisGains, CircleTrajectory, ControlOutput, ControllerConfig, DampingConfig,
+    Joints, TaskGains, TaskReference, TaskSpaceController,
 };
+use shared::planning::{solve_ik, IkConfig};
 use shared::robot::drive::SIMULATOR_COULOMB_WIDTH;
 use shared::robot::{DriveOptions, Puma560};
 
@@ -129,12 +130,15 @@ pub fn start_on(
     plant: &Puma560<f64>,
     reference: &TaskReference<f64>,
 ) -> (Joints<f64>, Joints<f64>) {
-    let q = solve_pose(
+    let q = solve_ik(
         plant,
         &reference.base_from_flange,
         &Joints::from(IK_SEED),
-        1e-12,
-        100,
+        &IkConfig {
+            position_tolerance_m: 1e-12,
+            orientation_tolerance_rad: 1e-12,
+            ..IkConfig::default()
+        },
     )
     .expect("circle start is reachable");
     let qd = plant
