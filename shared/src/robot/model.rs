@@ -57,7 +57,7 @@ pub struct Payload<T> {
     pub com_flange: Vector3<T>,
 }
 
-/// Joint limits: position from the table, velocity and torque see [`table`] (derived/assumed).
+/// Joint limits: position from the table; velocity (Corke 1996) and torque (AKB86): see [`table`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct JointLimits<T> {
     /// Lower position limit (rad).
@@ -420,7 +420,7 @@ impl<T: RealField + Copy> Puma560<T> {
         )
     }
 
-    /// Position (table), velocity (derived, assumed motor speed) and torque (assumed) limits.
+    /// Position (table), velocity (Corke 1996, Table 2.21) and torque (AKB86, Table 7) limits.
     pub fn joint_limits(&self) -> &JointLimits<T> {
         &self.limits
     }

@@ -1,4 +1,4 @@
-//! The PUMA 560 parameter table of `puma560-model.md` (f64, SI), plus the cited/assumed limits.
+//! The PUMA 560 parameter table of `puma560-model.md` (f64, SI), plus the joint speed (Corke 1996) and torque (AKB86) limits.
 //!
 //! Source of the kinematic and dynamic rows (as the model file states): Robotics Toolbox for
 //! Python 1.5.0, `models.DH.Puma560()`, which cites P. Corke and B. Armstrong-Helouvry, "A search
@@ -81,33 +81,32 @@ pub const POSITION_MAX: [f64; 6] = [
     266.0 * DEGREE,
 ];
 
-/// ASSUMED motor speed limit (rad/s) (3000 rpm), the basis of [`VELOCITY_MAX`].
+/// Joint speed limits (rad/s), load side.
 ///
-/// The model file gives no velocity limits. The PUMA 560's joint servos are brushed DC motors
-/// behind the gear ratios `G` of the table; 3000 rpm is an assumed, typical rated speed for such
-/// motors, not a value taken from a Unimation document. The joint limits follow as
-/// `motor limit / |G|`, which ties them to the cited gear ratios.
-pub const MOTOR_SPEED_MAX: f64 = 3000.0 * 2.0 * core::f64::consts::PI / 60.0;
-
-/// Joint speed limits (rad/s), `MOTOR_SPEED_MAX / |G_j|` (about 5.0, 2.9, 5.8, 4.1, 4.4, 4.1):
-/// derived from the cited gear ratios and the ASSUMED 3000 rpm motor speed.
+/// Source: P. I. Corke, *Visual Control of Robots: High-Performance Visual Servoing*, Research
+/// Studies Press, 1996, Table 2.21 ("load referenced" maximum joint velocity: 1.92, 1.51, 2.40,
+/// 5.34, 5.09, 5.74 rad/s), which divides the motor voltage-saturation speeds measured in his
+/// Table 2.18 (120, 163, 129, 406, 366, 440 rad/s, motor side) by the gear ratios `|G|` of the
+/// table above. The values below are those quotients. They were taken as quoted from the book's
+/// tables by another public robotics library; this project has not checked the printed book.
 pub const VELOCITY_MAX: [f64; 6] = [
-    MOTOR_SPEED_MAX / 62.6111,
-    MOTOR_SPEED_MAX / 107.815,
-    MOTOR_SPEED_MAX / 53.7063,
-    MOTOR_SPEED_MAX / 76.0364,
-    MOTOR_SPEED_MAX / 71.923,
-    MOTOR_SPEED_MAX / 76.686,
+    120.0 / 62.6111,
+    163.0 / 107.815,
+    129.0 / 53.7063,
+    406.0 / 76.0364,
+    366.0 / 71.923,
+    440.0 / 76.686,
 ];
 
-/// Joint torque limits (N m): ASSUMED.
+/// Joint torque limits (N m).
 ///
-/// These are the values `[97.6, 186.4, 89.4, 24.2, 20.1, 21.3]` that are widely quoted for the
-/// PUMA 560 in the trajectory-planning literature. Their primary source could not be checked for
-/// this project, so they are an assumption, not a citation. The unit tests check the property the
-/// controller relies on: every limit exceeds the largest static gravity torque of the rigid model
-/// over the joint range (at most about 46 N m at joint 2 and 8.8 N m at joint 3, sampled), so the
-/// arm can always hold itself.
+/// Source: B. Armstrong, O. Khatib and J. Burdick, "The explicit dynamic model and inertial
+/// parameters of the PUMA 560 arm", Proc. IEEE ICRA 1986 (AKB86, one of the sources of this
+/// model's table), Table 7 "Maximum Torque (N-m)": 97.6, 186.4, 89.4, 24.2, 20.1, 21.3. Taken
+/// as quoted by another public robotics library; this project has not checked the printed paper.
+/// The unit tests check the property the controller relies on: every limit exceeds the largest
+/// static gravity torque of the rigid model over the joint range (at most about 46 N m at joint 2
+/// and 8.8 N m at joint 3, sampled), so the arm can always hold itself.
 pub const TORQUE_MAX: [f64; 6] = [97.6, 186.4, 89.4, 24.2, 20.1, 21.3];
 
 /// Standard gravity of the model, base frame (m/s^2) (toolbox and Pinocchio default).
