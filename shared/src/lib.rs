@@ -33,3 +33,6 @@ pub mod observation;
 pub mod planning;
 pub mod protocol;
 pub mod robot;
+
+#[cfg(test)]
+mod test_rng;

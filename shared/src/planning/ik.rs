@@ -114,12 +114,7 @@ mod tests {
     fn reaches_poses_from_forward_kinematics_with_warm_starts() {
         let robot = Puma560::<f64>::new();
         let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let mut uniform = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut uniform = move || crate::test_rng::splitmix(&mut state);
         for _ in 0..20 {
             let q_true = qn() + JointVector::from_fn(|_, _| uniform() * 1.2 - 0.6);
             let seed =
