@@ -10,7 +10,9 @@
 //! 3. Self-calibrates from that: camera by virtual rotation, part with heights
 //!    (Eqs 3 to 8), robot base against the disc (Eqs 10 to 15), refined by bundle
 //!    adjustment; and, for comparison, by the paper's own two-frame method.
-//! 4. Prints the errors against the truth beside the paper's reported figures.
+//! 4. Prints the errors against the truth beside the paper's reported figures,
+//!    and a warning on stderr when the part's height is poorly observable (a
+//!    camera nearly above the disc's axis, e.g. `--scenario near-axis`).
 
 use std::time::{Duration, Instant};
 
@@ -19,7 +21,7 @@ use clap::Args;
 use shared::calibration::CalibrationConfig;
 
 use crate::accuracy::metrics::{compare, ErrorMetrics};
-use crate::calibrate_cmd::calibrate_log;
+use crate::calibrate_cmd::{calibrate_log, part_height_warning};
 use crate::link::check::Session;
 use crate::link::InProcessLink;
 use crate::workcell::{simulate, Scenario};
@@ -30,7 +32,7 @@ pub struct DemoArgs {
     /// Which random workcell (seed of the generator).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Sensor scenario (noise-free, paper, noisy, quarter-turn, non-planar, reverse).
+    /// Sensor scenario (noise-free, paper, noisy, quarter-turn, non-planar, reverse, near-axis).
     #[arg(long, default_value = "paper")]
     pub scenario: String,
 }
@@ -77,6 +79,10 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
     let calibration =
         calibrate_log(&run.log, CalibrationConfig::default()).context("self-calibration")?;
     let elapsed = started.elapsed();
+    let warning = calibration
+        .refined_uncertainty
+        .as_ref()
+        .and_then(part_height_warning);
     let refined = calibration
         .refined
         .map_err(|e| anyhow!("self-calibration failed: {e}"))?;
@@ -92,6 +98,9 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
         elapsed.as_secs_f64() * 1e3,
         refined.quality.rms_reprojection_px
     );
+    if let Some(warning) = &warning {
+        eprintln!("{warning}\n");
+    }
     print_table(&refined_errors, paper_errors.as_ref());
     println!(
         "\nThe full pick (fusion, interception and computed-torque tracking of the moving part) is the next milestone;\n\

@@ -164,34 +164,34 @@ fn p95(values: impl Iterator<Item = f64>) -> f64 {
     percentile(&values.collect::<Vec<_>>(), 0.95).expect("non-empty")
 }
 
-/// The targets (95th percentile, paper scenario) on a seeded set of 20 workcells.
+/// The five targets (95th percentile, paper scenario) on a seeded set of
+/// 40 workcells, every camera tilt the scenario draws (10 to 35 degrees) included.
 #[test]
 fn paper_scenario_meets_the_accuracy_targets() {
-    let outcomes = run(Scenario::paper(), 20, 7);
+    let outcomes = run(Scenario::paper(), 40, 7);
     let errors = refined(&outcomes);
     let all = || errors.iter();
-    assert!(p95(all().map(|e| e.part_yaw_deg)) < 0.8);
-    assert!(p95(all().map(|e| e.camera_height_mm)) < 5.5);
-    assert!(p95(all().map(|e| e.base_translation_mm)) < 15.0);
-    assert!(p95(all().map(|e| e.base_yaw_deg)) < 0.35);
-    // Part position: the 2 mm target holds where the camera looks down at a slant;
-    // within about 10 degrees of vertical the feature heights are weakly observable
-    // (the estimate fits the pixels better than the truth does), so there only the
-    // median is held to the target. See the accuracy report's tilt breakdown.
-    let slanted: Vec<f64> = outcomes
-        .iter()
-        .zip(all())
-        .filter(|(o, _)| o.camera_tilt_deg >= 10.0)
-        .map(|(_, e)| e.part_position_mm)
-        .collect();
-    assert!(
-        slanted.len() >= 10,
-        "only {} slanted cameras",
-        slanted.len()
-    );
-    assert!(p95(slanted.into_iter()) < 2.0);
-    let positions: Vec<f64> = all().map(|e| e.part_position_mm).collect();
-    assert!(median(&positions).expect("non-empty") < 2.0);
+    for (p95, target, name) in [
+        (
+            p95(all().map(|e| e.part_position_mm)),
+            2.0,
+            "part position (mm)",
+        ),
+        (p95(all().map(|e| e.part_yaw_deg)), 0.8, "part yaw (deg)"),
+        (
+            p95(all().map(|e| e.camera_height_mm)),
+            5.5,
+            "camera height (mm)",
+        ),
+        (
+            p95(all().map(|e| e.base_translation_mm)),
+            15.0,
+            "base translation (mm)",
+        ),
+        (p95(all().map(|e| e.base_yaw_deg)), 0.35, "base yaw (deg)"),
+    ] {
+        assert!(p95 < target, "{name}: 95th percentile {p95} >= {target}");
+    }
     // The refined estimate improves on the paper's two-frame method.
     let paper_base: Vec<f64> = outcomes
         .iter()
@@ -199,6 +199,86 @@ fn paper_scenario_meets_the_accuracy_targets() {
         .collect();
     let refined_base: Vec<f64> = all().map(|e| e.base_translation_mm).collect();
     assert!(median(&refined_base) < median(&paper_base));
+}
+
+/// A camera nearly above the disc's axis (tilt 0 to 10 degrees): the part position
+/// is poorly observable, so no 2 mm target, but the reported uncertainty must cover
+/// the actual error and the user must be warned where it is large.
+#[test]
+fn near_axis_uncertainty_covers_the_part_error_and_large_sigmas_warn() {
+    let outcomes = run(Scenario::named("near-axis").expect("scenario"), 40, 7);
+    let errors = refined(&outcomes);
+    let mut warned = 0;
+    for (outcome, errors) in outcomes.iter().zip(&errors) {
+        assert!(
+            outcome.camera_tilt_deg < 10.0,
+            "tilt {}",
+            outcome.camera_tilt_deg
+        );
+        let sigma_mm = outcome.refined_part_sigma_mm.expect("refined uncertainty");
+        assert!(
+            errors.part_position_mm <= 4.0 * sigma_mm,
+            "trial {} (record seed {}): part error {} mm > 4 x sigma {sigma_mm} mm",
+            outcome.trial,
+            outcome.seed,
+            errors.part_position_mm
+        );
+        if sigma_mm > 5.0 {
+            warned += 1;
+        }
+    }
+    // The degenerate geometry really shows: some estimates are far off and say so.
+    assert!(warned >= 3, "only {warned} of 40 near-axis workcells warn");
+    assert!(p95(errors.iter().map(|e| e.part_position_mm)) > 2.0);
+}
+
+fn calibrate_stderr(scenario: &str, seed: &str) -> String {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let log = dir.path().join("cell.jsonl");
+    let recorded = host_sim(&[
+        "record",
+        "--scenario",
+        scenario,
+        "--seed",
+        seed,
+        "-o",
+        path(&log),
+    ]);
+    assert!(
+        recorded.status.success(),
+        "{}",
+        String::from_utf8_lossy(&recorded.stderr)
+    );
+    let calibrated = host_sim(&["calibrate", path(&log)]);
+    let stderr = String::from_utf8_lossy(&calibrated.stderr).into_owned();
+    assert!(calibrated.status.success(), "{stderr}");
+    stderr
+}
+
+const NEAR_AXIS_WARNING: &str =
+    "warning: the camera is nearly above the disc's axis: feature heights are poorly observable";
+
+#[test]
+fn calibrate_and_the_default_run_warn_about_a_camera_above_the_disc_axis() {
+    // near-axis seed 1: a camera 0.8 degrees from vertical, part height 1-sigma about 25 mm.
+    let near_axis = calibrate_stderr("near-axis", "1");
+    assert!(near_axis.contains(NEAR_AXIS_WARNING), "{near_axis}");
+    assert!(
+        near_axis.contains("mount the camera further to the side"),
+        "{near_axis}"
+    );
+    let slanted = calibrate_stderr("paper", "1");
+    assert!(!slanted.contains("warning:"), "{slanted}");
+
+    let demo = host_sim(&["run", "--scenario", "near-axis", "--seed", "1"]);
+    let stderr = String::from_utf8_lossy(&demo.stderr);
+    assert!(demo.status.success(), "{stderr}");
+    assert!(stderr.contains(NEAR_AXIS_WARNING), "{stderr}");
+    let default = host_sim(&[]);
+    let stderr = String::from_utf8_lossy(&default.stderr);
+    assert!(default.status.success(), "{stderr}");
+    assert!(!stderr.contains("warning:"), "{stderr}");
+    assert!(String::from_utf8_lossy(&default.stdout).contains("| part position (mm) |"));
 }
 
 /// The conveyor may turn either way and a log may cover only part of a

@@ -54,8 +54,13 @@ fn workcells_stay_within_the_documented_ranges() {
             assert_eq!(truth.camera.height_m, pose.translation_m[2]);
             // Tilt: angle between the optical axis (third column) and straight down.
             let optical_axis = rotation.column(2);
-            let tilt = (-optical_axis.z).acos();
-            assert!(tilt <= 35.0_f64.to_radians() + 1e-12, "tilt {tilt}");
+            let tilt_deg = (-optical_axis.z).acos().to_degrees();
+            let (low, high) = scenario.camera_tilt_deg;
+            assert!(
+                (low - 1e-9..=high + 1e-9).contains(&tilt_deg),
+                "{name}: tilt {tilt_deg} deg outside {low} to {high}"
+            );
+            assert!((tilt_deg - run.truth.workcell.camera_tilt_deg).abs() < 1e-9);
             assert_eq!(
                 (run.log.header.camera.width, run.log.header.camera.height),
                 (256, 256)

@@ -11,7 +11,7 @@ use shared::calibration::{CalibrationConfig, CalibrationError};
 use shared::observation::CalibrationResult;
 
 use super::metrics::{compare, ErrorMetrics};
-use crate::calibrate_cmd::calibrate_log;
+use crate::calibrate_cmd::{calibrate_log, part_sigmas_m};
 use crate::workcell::{simulate, Scenario};
 
 /// Which estimate of a trial.
@@ -54,6 +54,9 @@ pub struct TrialOutcome {
     /// Tilt of the camera's optical axis from the vertical: near 0 the feature
     /// heights are weakly observable (tilt and offset of the camera look alike).
     pub camera_tilt_deg: f64,
+    /// Reported one-sigma of the refined part position (root-sum-square of the
+    /// axes), mm; `None` when the refined estimate (or the trial) failed.
+    pub refined_part_sigma_mm: Option<f64>,
     /// Errors per method, or why that method (or the trial) failed.
     pub refined: Result<ErrorMetrics, String>,
     pub paper: Result<ErrorMetrics, String>,
@@ -126,6 +129,7 @@ pub fn run_trial(plan: &TrialPlan, options: &HarnessOptions) -> TrialOutcome {
         seed: plan.seed,
         effector_frames: 0,
         camera_tilt_deg: f64::NAN,
+        refined_part_sigma_mm: None,
         refined: Err(message.clone()),
         paper: Err(message),
     };
@@ -149,6 +153,10 @@ pub fn run_trial(plan: &TrialPlan, options: &HarnessOptions) -> TrialOutcome {
             seed: plan.seed,
             effector_frames: truth.quality.effector_frames_used,
             camera_tilt_deg: run.truth.workcell.camera_tilt_deg,
+            refined_part_sigma_mm: calibration
+                .refined_uncertainty
+                .as_ref()
+                .map(|u| part_sigmas_m(u).1 * 1000.0),
             refined: score(&calibration.refined, truth),
             paper: score(&calibration.paper, truth),
         },

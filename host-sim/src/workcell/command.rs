@@ -12,7 +12,7 @@ use crate::log::write_log_file;
 /// Record a synthetic observation log from a random workcell (plus LOG.truth.json beside it).
 #[derive(clap::Args, Debug)]
 pub struct RecordArgs {
-    /// Scenario name: noise-free, paper, noisy, quarter-turn, non-planar or reverse.
+    /// Scenario name: noise-free, paper, noisy, quarter-turn, non-planar, reverse or near-axis.
     #[arg(long, default_value = "paper")]
     pub scenario: String,
     /// Seed of the random workcell and noise (same seed, same log).

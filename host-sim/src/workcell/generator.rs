@@ -4,10 +4,12 @@
 //!
 //! Ranges (all uniform):
 //! - camera: optical centre 1.8 to 3.0 m above the disc, optical axis tilted
-//!   0 to 35 degrees from the downward vertical in a random direction, aimed at a
-//!   point within 0.1 m of the disc centre, random roll; the focal length frames
-//!   the disc so that its rim spans 55 to 80 % of the half-image along the axis
-//!   (a lens chosen to frame the workcell), shrunk until the whole rim is in view;
+//!   from the downward vertical by the scenario's `camera_tilt_deg` (10 to 35
+//!   degrees in all but `near-axis`, which uses 0 to 10) in a random direction,
+//!   aimed at a point within 0.1 m of the disc centre, random roll; the focal
+//!   length frames the disc so that its rim spans 55 to 80 % of the half-image
+//!   along the axis (a lens chosen to frame the workcell), shrunk until the whole
+//!   rim is in view;
 //! - disc: 0.9 m diameter; reference mark at L = 0.35 to 0.43 m;
 //! - part: centre 0.10 to 0.30 m from the disc centre, features 3 to 6 cm from
 //!   the part centre, heights per the scenario;
@@ -15,6 +17,26 @@
 //!   reach from the shoulder is about 0.86 m, so the near half of the disc is
 //!   reachable), the disc surface 0 to 0.5 m below the shoulder axis
 //!   (z = 0.67183 m in the base frame), any yaw.
+//!
+//! Why the camera is tilted at least 10 degrees. The paper's setting is a camera
+//! beside the disc (assumption A4: the whole workcell, robot included, is in view;
+//! Fig 1: a ceiling camera next to the robot and the conveyor), so its optical
+//! centre is off the disc's axis. That matters for the part: a feature at radius
+//! r and height h sweeps a circle whose image radius only gives r / (H - h) (H:
+//! the camera's height), so r and h trade off; h shows only through the shift of
+//! that circle's image centre against the disc centre's image (Eqs 3 to 8), about
+//! f d h / H^2 pixels for an optical centre d metres off the axis. Aiming within
+//! 0.1 m of the disc centre, d is about H tan(tilt): near zero for a camera
+//! looking straight down. Measured on the paper scenario's noise (100 workcells,
+//! tilt drawn from 0 to 35 degrees), the 95th percentile of the part-position
+//! error was 12.9 mm for tilts of 0 to 10 degrees, 1.22 mm for 10 to 20 and
+//! 0.67 mm for 20 to 35, with the calibrator's reported standard deviations
+//! covering the errors (normalised RMS about 1); `host-sim accuracy --trials 1000
+//! --scenarios paper,near-axis` confirms it with today's ranges: 11.5 mm (0 to 10
+//! degrees, `near-axis`), 1.45 mm (10 to 20), 0.70 mm (20 to 35). So every scenario draws the tilt from 10 to
+//! 35 degrees (the "tilted up to 35 degrees", off the axis as in A4), and
+//! the degenerate geometry is kept, measurable and warned about, in the
+//! `near-axis` scenario (tilt 0 to 10 degrees).
 
 use std::f64::consts::{PI, TAU};
 use std::fmt;
@@ -31,7 +53,9 @@ use super::scenario::{FeatureHeights, Scenario};
 pub const IMAGE_SIDE_PX: u32 = 256;
 pub const DISC_RADIUS_M: f64 = 0.45;
 pub const CAMERA_HEIGHT_RANGE_M: (f64, f64) = (1.8, 3.0);
-pub const CAMERA_MAX_TILT_RAD: f64 = 35.0 * PI / 180.0;
+/// Largest camera tilt any scenario may ask for, degrees: beyond it the disc is
+/// seen too obliquely for the rim-fill rule above.
+pub const CAMERA_MAX_TILT_DEG: f64 = 35.0;
 pub const CAMERA_AIM_OFFSET_M: f64 = 0.1;
 pub const DISC_RIM_FILL_RANGE: (f64, f64) = (0.55, 0.80);
 /// Pixels the disc rim keeps from the image border.
@@ -83,9 +107,27 @@ fn perpendicular(axis: &Vector3<f64>) -> Vector3<f64> {
     axis.cross(&helper).normalize()
 }
 
-fn random_camera(rng: &mut impl Rng) -> (PinholeCamera, f64) {
+/// The scenario's tilt range in radians, or why it cannot be used.
+fn tilt_range_rad(scenario: &Scenario) -> Result<(f64, f64), GenerationError> {
+    let (low, high) = scenario.camera_tilt_deg;
+    if low.is_finite()
+        && high.is_finite()
+        && 0.0 <= low
+        && low <= high
+        && high <= CAMERA_MAX_TILT_DEG
+    {
+        Ok((low.to_radians(), high.to_radians()))
+    } else {
+        Err(GenerationError(format!(
+            "scenario {}: camera tilt range ({low}, {high}) deg is not within 0 to {CAMERA_MAX_TILT_DEG} deg, low to high",
+            scenario.name
+        )))
+    }
+}
+
+fn random_camera(rng: &mut impl Rng, tilt_range_rad: (f64, f64)) -> (PinholeCamera, f64) {
     let height_m = uniform(rng, CAMERA_HEIGHT_RANGE_M);
-    let tilt_rad = uniform(rng, (0.0, CAMERA_MAX_TILT_RAD));
+    let tilt_rad = uniform(rng, tilt_range_rad);
     let tilt_azimuth_rad = uniform(rng, (0.0, TAU));
     let roll_rad = uniform(rng, (0.0, TAU));
     let aim_radius_m = CAMERA_AIM_OFFSET_M * rng.random::<f64>().sqrt();
@@ -195,8 +237,9 @@ pub fn random_workcell(
     rng: &mut impl Rng,
     scenario: &Scenario,
 ) -> Result<(Workcell, WorkcellParameters), GenerationError> {
+    let tilt_range_rad = tilt_range_rad(scenario)?;
     for _ in 0..MAX_WORKCELL_ATTEMPTS {
-        let (camera, tilt_rad) = random_camera(rng);
+        let (camera, tilt_rad) = random_camera(rng, tilt_range_rad);
         if !rim_in_view(&camera) {
             continue;
         }
@@ -232,4 +275,42 @@ pub fn random_workcell(
     Err(GenerationError(format!(
         "no workcell with the disc rim in view and a reachable effector pose in {MAX_WORKCELL_ATTEMPTS} draws"
     )))
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::rngs::ChaCha8Rng;
+    use rand::SeedableRng;
+
+    use super::*;
+
+    #[test]
+    fn drawn_tilts_stay_in_the_scenario_range() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for name in ["paper", "near-axis"] {
+            let scenario = Scenario::named(name).unwrap();
+            let (low, high) = scenario.camera_tilt_deg;
+            for _ in 0..20 {
+                let (_, parameters) = random_workcell(&mut rng, &scenario).unwrap();
+                assert!(
+                    (low..=high).contains(&parameters.camera_tilt_deg),
+                    "{name}: {}",
+                    parameters.camera_tilt_deg
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn an_unusable_tilt_range_is_refused_by_name() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for range in [(20.0, 10.0), (-1.0, 10.0), (10.0, 60.0), (f64::NAN, 10.0)] {
+            let scenario = Scenario {
+                camera_tilt_deg: range,
+                ..Scenario::paper()
+            };
+            let err = random_workcell(&mut rng, &scenario).err().unwrap();
+            assert!(err.to_string().contains("camera tilt range"), "{err}");
+        }
+    }
 }
