@@ -79,31 +79,6 @@ pub struct Calibration {
     pub paper: Result<CalibrationResult, CalibrationError>,
 }
 
-/// The standard deviations printed beside the result (an extra key the contract's
-/// readers ignore; the contract welcomes more than `frames_used` and the RMS).
-#[derive(Debug, Clone, Copy, Serialize)]
-pub struct UncertaintyReport {
-    pub camera_height_m: f64,
-    pub camera_position_m: [f64; 3],
-    pub camera_rotation_rad: [f64; 3],
-    pub part_position_m: [f64; 3],
-    pub base_yaw_rad: f64,
-    pub base_translation_m: [f64; 3],
-}
-
-impl From<&EstimateUncertainty> for UncertaintyReport {
-    fn from(u: &EstimateUncertainty) -> Self {
-        Self {
-            camera_height_m: u.camera_height_m,
-            camera_position_m: u.camera_position_m,
-            camera_rotation_rad: u.camera_rotation_rad,
-            part_position_m: u.part_position_m,
-            base_yaw_rad: u.base_yaw_rad,
-            base_translation_m: u.base_translation_m,
-        }
-    }
-}
-
 /// What `calibrate` prints on stdout: the contract's result, plus (for the refined
 /// estimate) its one-sigma uncertainties under `uncertainty_1sigma`.
 #[derive(Serialize)]
@@ -111,7 +86,7 @@ struct PrintedResult<'a> {
     #[serde(flatten)]
     result: &'a CalibrationResult,
     #[serde(skip_serializing_if = "Option::is_none")]
-    uncertainty_1sigma: Option<UncertaintyReport>,
+    uncertainty_1sigma: Option<EstimateUncertainty>,
 }
 
 /// Pushes every `(line, frame)` into a host-sized calibrator, then estimates. A
@@ -213,10 +188,7 @@ pub fn run_calibrate(args: &CalibrateArgs) -> anyhow::Result<()> {
         uncertainty_1sigma: if args.paper {
             None
         } else {
-            calibration
-                .refined_uncertainty
-                .as_ref()
-                .map(UncertaintyReport::from)
+            calibration.refined_uncertainty
         },
     };
     serde_json::to_writer_pretty(&mut stdout, &printed_result).context("writing the result")?;

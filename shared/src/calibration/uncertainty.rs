@@ -7,8 +7,9 @@ use nalgebra::{SMatrix, Vector3};
 use super::model::{BASE_OFFSET, FEATURE_OFFSET, PARAMETERS};
 use crate::observation::MAX_PART_FEATURES;
 
-/// One-sigma uncertainties of the refined estimate (metres, radians).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+/// One-sigma uncertainties of the refined estimate (metres, radians); serialised
+/// beside the calibration result as `uncertainty_1sigma`.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct EstimateUncertainty {
     /// Of `camera.height_m`.
     pub camera_height_m: f64,
