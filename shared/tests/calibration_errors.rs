@@ -113,6 +113,18 @@ fn invalid_frames_are_rejected_and_leave_the_state_unchanged() {
                     ..
                 })
             ));
+            // Finite but far outside the image: refused (it would poison the conic fit).
+            let mut outside = frame.clone();
+            outside.reference_px = Some([1e80, 12.0]);
+            let error = dirty.push(&outside).unwrap_err();
+            assert!(matches!(
+                error,
+                CalibrationError::OutsideImage {
+                    field: "reference_px",
+                    ..
+                }
+            ));
+            assert!(error.to_string().contains("outside the image"));
         }
     }
     assert_eq!(clean.estimate().unwrap(), dirty.estimate().unwrap());

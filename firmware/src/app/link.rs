@@ -36,11 +36,16 @@ pub async fn link_task(board_name: &'static str, mut serial: active::Serial) {
             };
             let reply = match decoded {
                 Ok(message) => {
-                    if let Message::SensorSample(sample) = &message {
+                    responder.set_control_ticks(ticks.control_ticks());
+                    let reply = responder.handle(&message);
+                    // Only an acknowledged sample (open session) reaches the encoders:
+                    // a refused frame changes nothing.
+                    if let (Message::SensorSample(sample), Some(Message::Ack { .. })) =
+                        (&message, &reply)
+                    {
                         active::on_host_sensor_sample(&sample.joint_counts);
                     }
-                    responder.set_control_ticks(ticks.control_ticks());
-                    responder.handle(&message)
+                    reply
                 }
                 Err(e) => {
                     defmt::warn!("link: frame rejected: {}", defmt::Display2Format(&e));

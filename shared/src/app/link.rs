@@ -109,6 +109,7 @@ impl LinkResponder {
     fn hello(&mut self, peer_version: u16) -> Message {
         if peer_version != PROTOCOL_VERSION {
             self.session_open = false;
+            self.status.mode = ControllerMode::Idle;
             return Message::ErrorReport {
                 code: ErrorCode::UnsupportedVersion,
                 detail: u32::from(PROTOCOL_VERSION),

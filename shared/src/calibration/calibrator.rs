@@ -181,11 +181,26 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
                 });
             }
         }
-        if frame.center_px.as_ref().is_some_and(|p| !finite(p)) {
-            return Err(non_finite("center_px"));
+        // Finite and inside the image (the contract's detection rule): a point far
+        // outside would poison the conic's scatter matrix for the rest of the run.
+        let camera = self.header.camera;
+        let check = |p: &PixelPoint, field| -> Result<(), CalibrationError> {
+            if !finite(p) {
+                Err(non_finite(field))
+            } else if !camera.contains(*p) {
+                Err(CalibrationError::OutsideImage {
+                    frame: index,
+                    field,
+                })
+            } else {
+                Ok(())
+            }
+        };
+        if let Some(p) = &frame.center_px {
+            check(p, "center_px")?;
         }
-        if frame.reference_px.as_ref().is_some_and(|p| !finite(p)) {
-            return Err(non_finite("reference_px"));
+        if let Some(p) = &frame.reference_px {
+            check(p, "reference_px")?;
         }
         let part = match &frame.part_px {
             None => None,
@@ -199,17 +214,15 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
                 }
                 let mut stored: [PixelF32; MAX_PART_FEATURES] = [[0.0; 2]; MAX_PART_FEATURES];
                 for (slot, point) in stored.iter_mut().zip(points.iter()) {
-                    if !finite(point) {
-                        return Err(non_finite("part_px"));
-                    }
+                    check(point, "part_px")?;
                     *slot = to_f32(*point);
                 }
                 Some(stored)
             }
         };
         if let Some(sighting) = &frame.effector {
-            if !sighting.px.iter().all(finite) {
-                return Err(non_finite("effector_px"));
+            for p in &sighting.px {
+                check(p, "effector_px")?;
             }
             if !sighting.base_m.iter().flatten().all(|v| v.is_finite()) {
                 return Err(non_finite("effector_base_m"));

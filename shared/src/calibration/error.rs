@@ -22,6 +22,9 @@ pub enum CalibrationError {
     InvalidConfig { field: &'static str },
     /// A frame holds NaN or an infinity in `field` (frame = index of the offered frame, from 0).
     NonFiniteValue { frame: u32, field: &'static str },
+    /// A detection lies outside the image (the contract says such a point is not
+    /// detected, so a log holding one is malformed).
+    OutsideImage { frame: u32, field: &'static str },
     /// `part_px` holds `found` points but the header announced `expected`.
     WrongFeatureCount {
         frame: u32,
@@ -81,6 +84,10 @@ impl fmt::Display for CalibrationError {
             CalibrationError::NonFiniteValue { frame, field } => {
                 write!(f, "frame {frame}: field `{field}` is not a finite number")
             }
+            CalibrationError::OutsideImage { frame, field } => write!(
+                f,
+                "frame {frame}: field `{field}` lies outside the image (-0.5 <= u <= width - 0.5, likewise v)"
+            ),
             CalibrationError::WrongFeatureCount { frame, expected, found } => write!(
                 f,
                 "frame {frame}: `part_px` has {found} points, the header says {expected}"

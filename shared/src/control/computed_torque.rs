@@ -147,7 +147,9 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
         }
     }
 
-    /// Eq 23 with integral action; fails without touching the state.
+    /// Eq 23 with integral action. On failure the integral is untouched; the
+    /// (already checked finite) `q` is kept as the last finite configuration
+    /// for the gravity hold.
     fn track<M: TaskSpaceModel<T>>(
         &mut self,
         model: &M,

@@ -258,8 +258,9 @@ pub fn plan_intercept<T: RealField + Copy>(
         InterceptPlan::between(start, &end, d, limits.yaw_symmetry_rad)
     };
     let mut previous_failed = None;
-    let mut d = limits.min_duration_s;
-    while d <= limits.max_duration_s {
+    let steps = scan_steps(limits)?;
+    for step in 0..=steps {
+        let d = limits.min_duration_s + limits.duration_step_s * convert::<f64, T>(step as f64);
         let plan = candidate(d)?;
         if plan.within_task_limits(limits)
             && plan
@@ -277,9 +278,27 @@ pub fn plan_intercept<T: RealField + Copy>(
             ));
         }
         previous_failed = Some(d);
-        d += limits.duration_step_s;
     }
     Err(PlanError::NoFeasibleIntercept)
+}
+
+/// Most candidate durations one plan may try: each costs an IK solve per sample.
+const MAX_SCAN_STEPS: usize = 1000;
+
+/// How many steps of the duration scan: counted, so a step too small for the
+/// scalar's resolution cannot stall the loop.
+fn scan_steps<T: RealField + Copy>(limits: &InterceptLimits<T>) -> Result<usize, PlanError> {
+    let span: f64 = nalgebra::try_convert(
+        (limits.max_duration_s - limits.min_duration_s) / limits.duration_step_s,
+    )
+    .unwrap_or(f64::INFINITY);
+    if !(span.is_finite() && span <= MAX_SCAN_STEPS as f64) {
+        return Err(PlanError::InvalidLimits {
+            what: "duration_step_s too small: more than 1000 candidate durations",
+        });
+    }
+    // Non-negative (validated max >= min), so truncation is the floor.
+    Ok(span as usize)
 }
 
 /// Bisects between the last failing and the first feasible duration.
@@ -439,6 +458,14 @@ mod tests {
     fn refuses_bad_limits_and_nan_states() {
         let (robot, q, home) = start();
         let target = part_after(0.5, 0.0);
+        let tiny_step = InterceptLimits {
+            duration_step_s: 1e-9,
+            ..InterceptLimits::default()
+        };
+        assert!(matches!(
+            plan_intercept(&home, &target, &tiny_step, &robot, &q),
+            Err(PlanError::InvalidLimits { .. })
+        ));
         let bad = InterceptLimits {
             samples: 1,
             ..InterceptLimits::default()

@@ -144,7 +144,7 @@ impl FrameDecoder {
                     *slot = byte;
                     self.len += 1;
                 }
-                _ => self.discarded += 1,
+                _ => self.discarded = self.discarded.saturating_add(1),
             }
             return None;
         }
@@ -152,7 +152,7 @@ impl FrameDecoder {
         let discarded = core::mem::take(&mut self.discarded);
         if discarded > 0 {
             return Some(Err(DecodeError::Oversized {
-                discarded: discarded + len,
+                discarded: discarded.saturating_add(len),
             }));
         }
         if len == 0 {
