@@ -1,24 +1,20 @@
 //! Small geometric helpers with the contract's conventions (`spec/frames-and-log.md`).
 
-use std::f64::consts::{PI, TAU};
-
 use nalgebra::{Matrix3, Vector3};
 
 /// Rotation about +Z by `angle` (the paper's Eq 2 for `disc_from_rotating`, Eq 14 for `base_from_disc`).
+///
+/// Written here rather than taken from `shared`: the ground truth builds its
+/// geometry independently of the estimator, so a sign error in one cannot hide
+/// in the other.
 pub fn rotation_z(angle_rad: f64) -> Matrix3<f64> {
     let (sin, cos) = angle_rad.sin_cos();
     Matrix3::new(cos, -sin, 0.0, sin, cos, 0.0, 0.0, 0.0, 1.0)
 }
 
-/// `angle` wrapped to (-pi, pi], the contract's range for yaw angles.
-pub fn wrap_angle(angle_rad: f64) -> f64 {
-    let wrapped = (angle_rad + PI).rem_euclid(TAU) - PI;
-    if wrapped <= -PI {
-        wrapped + TAU
-    } else {
-        wrapped
-    }
-}
+/// `angle` wrapped to (-pi, pi], the contract's range for yaw angles (the same
+/// function the estimator uses: wrapping carries no convention to get wrong).
+pub use shared::calibration::effector::wrap_angle;
 
 /// Absolute difference of two angles, taking the short way round (in [0, pi]).
 pub fn angle_distance(a_rad: f64, b_rad: f64) -> f64 {
@@ -50,6 +46,7 @@ pub fn from_rows(r: &[[f64; 3]; 3]) -> Matrix3<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::{PI, TAU};
 
     #[test]
     fn wrap_angle_lands_in_half_open_interval() {
