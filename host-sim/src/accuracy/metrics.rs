@@ -6,7 +6,7 @@ use std::fmt;
 use serde::{Deserialize, Serialize};
 use shared::observation::CalibrationResult;
 
-use crate::workcell::geometry::{angle_distance, from_array, from_rows};
+use crate::workcell::geometry::{angle_distance, from_array, from_rows, rotation_z};
 
 /// One calibration's errors. Distances are 3-D Euclidean.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -25,6 +25,12 @@ pub struct ErrorMetrics {
     pub base_translation_mm: f64,
     /// Error of `base_from_disc.yaw_rad`, degrees.
     pub base_yaw_deg: f64,
+    /// Error of the part's position in the robot's base frame (Eq 1, what the
+    /// gripper is sent to), worst over one revolution of the disc, mm. Camera,
+    /// part and base errors are correlated, so this is usually far smaller than
+    /// `base_translation_mm`.
+    #[serde(default)]
+    pub part_in_base_mm: f64,
 }
 
 /// A metric's column: name, unit, accessor.
@@ -34,7 +40,7 @@ pub struct MetricColumn {
     pub value: fn(&ErrorMetrics) -> f64,
 }
 
-pub const METRIC_COLUMNS: [MetricColumn; 7] = [
+pub const METRIC_COLUMNS: [MetricColumn; 8] = [
     MetricColumn {
         name: "feature_mm",
         unit: "mm",
@@ -69,6 +75,11 @@ pub const METRIC_COLUMNS: [MetricColumn; 7] = [
         name: "base_yaw_deg",
         unit: "deg",
         value: |m| m.base_yaw_deg,
+    },
+    MetricColumn {
+        name: "part_in_base_mm",
+        unit: "mm",
+        value: |m| m.part_in_base_mm,
     },
 ];
 
@@ -131,7 +142,25 @@ pub fn compare(
             truth.base_from_disc.yaw_rad,
         )
         .to_degrees(),
+        part_in_base_mm: part_in_base_mm(estimate, truth),
     })
+}
+
+/// Eq 1 for the part's position at conveyor angle `theta`.
+fn part_base_at(result: &CalibrationResult, theta: f64) -> nalgebra::Vector3<f64> {
+    let rotation = rotation_z(result.base_from_disc.yaw_rad + theta);
+    rotation * from_array(result.part.position_m) + from_array(result.base_from_disc.translation_m)
+}
+
+/// Worst distance between the estimated and true part position in the base frame
+/// over one revolution (72 angles), mm.
+fn part_in_base_mm(estimate: &CalibrationResult, truth: &CalibrationResult) -> f64 {
+    (0..72)
+        .map(|step| {
+            let theta = f64::from(step) * std::f64::consts::TAU / 72.0;
+            (part_base_at(estimate, theta) - part_base_at(truth, theta)).norm() * MM_PER_M
+        })
+        .fold(0.0, f64::max)
 }
 
 impl fmt::Display for ErrorMetrics {

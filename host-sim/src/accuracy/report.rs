@@ -508,6 +508,7 @@ mod tests {
             camera_rotation_deg: scale / 10.0,
             base_translation_mm: scale,
             base_yaw_deg: scale / 100.0,
+            part_in_base_mm: scale,
         }
     }
 
