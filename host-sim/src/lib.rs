@@ -13,5 +13,6 @@ pub mod calibrate_cmd;
 pub mod demo;
 pub mod link;
 pub mod log;
+pub mod pick;
 pub mod workcell;
 pub mod world;

@@ -78,10 +78,13 @@ impl LinkResponder {
                 Some(self.data(MessageKind::ActuatorCommand, command.seq))
             }
             Message::StatusRequest => Some(Message::Status(self.status)),
+            Message::Configure(_) => Some(self.data(MessageKind::Configure, 0)),
             Message::HelloAck { .. }
             | Message::Status(_)
             | Message::Ack { .. }
-            | Message::ErrorReport { .. } => {
+            | Message::ErrorReport { .. }
+            | Message::Telemetry(_)
+            | Message::CalibrationReport(_) => {
                 self.status.frames_unexpected = self.status.frames_unexpected.wrapping_add(1);
                 Some(Message::ErrorReport {
                     code: ErrorCode::UnexpectedMessage,

@@ -4,6 +4,8 @@
 use heapless::{String, Vec};
 use serde::{Deserialize, Serialize};
 
+pub use super::pick::{CalibrationReport, CellConfig, FaultCause, PickPhase, PickTelemetry};
+
 /// Longest peer / board name carried in the handshake, in bytes.
 pub const MAX_NAME_LEN: usize = 24;
 /// Longest firmware version string, in bytes.
@@ -106,6 +108,8 @@ pub enum MessageKind {
     CameraFeatures,
     SensorSample,
     ActuatorCommand,
+    /// A cell configuration (token 0).
+    Configure,
 }
 
 /// What went wrong, in an error report.
@@ -165,4 +169,11 @@ pub enum Message {
         code: ErrorCode,
         detail: u32,
     },
+    /// Host -> controller: arm the pick with the cell's configuration. From then
+    /// on every sensor sample is answered with an actuator command.
+    Configure(CellConfig),
+    /// Controller -> host: estimates at a bounded rate.
+    Telemetry(PickTelemetry),
+    /// Controller -> host: after each self-calibration.
+    CalibrationReport(CalibrationReport),
 }

@@ -16,6 +16,7 @@
 mod cobs;
 mod frame;
 mod messages;
+mod pick;
 
 pub use frame::{
     encode_frame, DecodeError, EncodeError, FrameDecoder, CRC_LEN, MAX_BODY_LEN, MAX_FRAME_LEN,

@@ -1,0 +1,112 @@
+//! What one simulated pick leaves behind: the time series of truth and of the
+//! controller's telemetry, the calibration, the events and the outcome. The
+//! plots, the CSV files, the results table and the Monte Carlo read these.
+
+use serde::{Deserialize, Serialize};
+use shared::protocol::{CalibrationReport, FaultCause, PickPhase};
+
+/// One sample of the run (every telemetry period of the controller).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TickRecord {
+    pub t_s: f64,
+    pub phase: PickPhase,
+    /// The part's true grasp point (mean of its features) and yaw in the base frame.
+    pub part_true_base_m: [f64; 3],
+    pub part_true_yaw_rad: f64,
+    /// The controller's fused estimate of the same (Eq 1), once it has one.
+    pub part_est_base_m: Option<[f64; 3]>,
+    pub part_est_yaw_rad: Option<f64>,
+    /// The estimator's 1-sigma for the part position (0 before calibration).
+    pub part_sigma_m: f64,
+    /// The grasp point of the gripper (true, from the plant's joint angles) and
+    /// where the controller sends it, with yaws.
+    pub tool_true_base_m: [f64; 3],
+    pub tool_true_yaw_rad: f64,
+    pub tool_ref_base_m: [f64; 3],
+    pub tool_ref_yaw_rad: f64,
+    /// Conveyor angle (unwrapped, true) and speed, true and estimated.
+    pub theta_true_rad: f64,
+    pub theta_est_wrapped_rad: f64,
+    pub omega_true_rad_s: f64,
+    pub omega_est_rad_s: f64,
+    /// Plant joint angles, speeds and the torque delivered (after saturation).
+    pub q_rad: [f64; 6],
+    pub qd_rad_s: [f64; 6],
+    pub tau_nm: [f64; 6],
+}
+
+/// A phase change, as the controller reported it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PhaseEvent {
+    pub t_s: f64,
+    pub phase: PickPhase,
+}
+
+/// The calibration the controller reported, with the truth beside it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationRecord {
+    pub t_s: f64,
+    pub report: CalibrationReport,
+    pub true_camera_height_m: f64,
+    pub true_base_yaw_rad: f64,
+    pub true_base_translation_m: [f64; 3],
+}
+
+/// How the pick ended.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum PickResult {
+    /// Grasped, placed at the drop-off and back at the ready pose.
+    Success,
+    /// The gripper closed outside the tolerance.
+    GraspMissed,
+    /// The controller stopped on a fault (controlled stop).
+    Fault(FaultCause),
+    /// The simulation's time limit ran out in `PickPhase`.
+    TimedOut(PickPhase),
+}
+
+/// The gripper's error against the part at the instant it closed.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GraspRecord {
+    pub t_s: f64,
+    pub succeeded: bool,
+    /// Grasp point of the gripper minus the part's, base frame, m.
+    pub position_error_m: [f64; 3],
+    pub yaw_error_rad: f64,
+    pub relative_speed_m_s: f64,
+    /// The controller's part estimate (fused, Eq 1) minus the truth at that instant.
+    pub estimate_error_m: Option<[f64; 3]>,
+    pub estimate_yaw_error_rad: Option<f64>,
+}
+
+/// The fixed geometry of the cell for the top view, all in the base frame.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CellLayout {
+    pub disc_centre_base_m: [f64; 3],
+    pub disc_radius_m: f64,
+    pub camera_centre_base_m: [f64; 3],
+    pub drop_off_base_m: [f64; 3],
+}
+
+/// Everything one pick produced.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PickRun {
+    pub experiment: String,
+    pub seed: u64,
+    pub layout: CellLayout,
+    pub records: Vec<TickRecord>,
+    pub phases: Vec<PhaseEvent>,
+    pub calibrations: Vec<CalibrationRecord>,
+    pub grasp: Option<GraspRecord>,
+    pub result: PickResult,
+    /// Where the part was put down, and how far from the drop-off.
+    pub placed_error_m: Option<f64>,
+    /// Simulated seconds from start until the controller first had a calibrated cell.
+    pub calibrated_after_s: Option<f64>,
+    pub duration_s: f64,
+    /// Worst ratios over the run of |joint speed| and |commanded torque| to their limits.
+    pub max_speed_ratio: f64,
+    pub max_torque_ratio: f64,
+    /// Lowest height of the grasp point above the disc surface while not grasping, m.
+    pub min_tool_clearance_m: f64,
+}

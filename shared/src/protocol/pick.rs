@@ -1,0 +1,152 @@
+//! Messages of the pick session (appended to protocol v1; see [`super::Message`]).
+//!
+//! The host (simulator or vision computer) first sends [`CellConfig`]: what an
+//! integrator knows without calibrating anything (the camera's intrinsics, the
+//! reference mark's radius, the encoders' scales, where to drop parts). From then
+//! on the controller answers every sensor sample with an actuator command, and
+//! reports [`PickTelemetry`] at a bounded rate and a [`CalibrationReport`] after
+//! every self-calibration.
+
+use serde::{Deserialize, Serialize};
+
+use super::JOINTS;
+
+/// What the controller is told about the cell. Nothing here is a calibration:
+/// the camera's pose, the disc's pose and the part are found by the controller.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CellConfig {
+    /// Image size and pinhole intrinsics (known, paper assumption A5).
+    pub image_width_px: u16,
+    pub image_height_px: u16,
+    pub f_px: f32,
+    pub cx_px: f32,
+    pub cy_px: f32,
+    /// Standard deviation of a detection, pixels (weights the estimator).
+    pub pixel_sigma_px: f32,
+    /// The paper's L: distance from the disc centre to the reference mark.
+    pub reference_radius_m: f32,
+    /// Feature points the vision computer reports on the part (2..=8).
+    pub part_feature_count: u8,
+    /// Conveyor encoder counts per revolution of the disc.
+    pub conveyor_counts_per_rev: u32,
+    /// Width of the conveyor's hardware counter: 16 or 32 bits.
+    pub conveyor_counter_bits: u8,
+    /// Joint encoder counts per radian of each joint (0 counts at q = 0).
+    pub joint_counts_per_rad: [f32; JOINTS],
+    /// The paper's experiment 2: the disc surface's height in the base frame, when known.
+    pub disc_height_in_base_m: Option<f32>,
+    /// Where to put picked parts: the gripper's grasp point in the base frame.
+    pub drop_off_base_m: [f32; 3],
+    /// Camera trigger period, milliseconds (200 = the paper's slow 5 Hz vision).
+    pub camera_period_ms: u16,
+    /// Control periods between two telemetry messages (0: no telemetry).
+    pub telemetry_period_ticks: u16,
+}
+
+/// Where the pick stands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum PickPhase {
+    /// Not configured yet, or waiting for the first sensor sample.
+    Idle,
+    /// Watching the disc turn; the arm sweeps its marks through the camera's view.
+    SearchEffector,
+    /// Showing the marks at chosen poses above the disc (robot-to-disc calibration).
+    CalibrateBase,
+    /// Waiting for the calibration to be computed.
+    Estimating,
+    /// Waiting for a steady conveyor and a reachable part; planning the intercept.
+    Locate,
+    /// Following the planned path that meets the moving part.
+    Intercept,
+    /// Above the grasp point, matching the part's velocity.
+    Track,
+    Descend,
+    Grasp,
+    Lift,
+    Place,
+    Release,
+    Return,
+    /// The part is placed and the arm is back at its ready pose.
+    Done,
+    /// Decelerating to a stop after a fault.
+    Stopping,
+    /// Holding still after a fault; see the fault cause.
+    Faulted,
+}
+
+/// Why the controller stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum FaultCause {
+    /// A configuration value is out of range (the field is named in `detail`).
+    BadConfig,
+    /// Self-calibration failed or is not trustworthy.
+    CalibrationFailed,
+    /// The end effector's marks were never seen by the camera during the search.
+    EffectorNotSeen,
+    /// No camera frame arrived within the staleness limit.
+    VisionStale,
+    /// No sensor sample (link loss) within the watchdog limit.
+    LinkLost,
+    /// The part is or will be out of the arm's reach, or no intercept exists.
+    PartUnreachable,
+    /// The arm lagged its reference by more than the tracking limit.
+    TrackingError,
+    /// The conveyor encoder jumped or its time went backwards.
+    ConveyorEncoder,
+    /// A joint encoder reading was implausible (jump beyond the speed limit).
+    JointEncoder,
+    /// The control law could not produce a finite torque.
+    ControlFailure,
+    /// A phase took longer than its timeout.
+    Timeout,
+}
+
+/// A snapshot of the controller's estimates, sent every `telemetry_period_ticks`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PickTelemetry {
+    pub time_us: u64,
+    pub phase: PickPhase,
+    pub fault: Option<FaultCause>,
+    /// Conveyor angle (wrapped to (-pi, pi]), speed, and their 1-sigma.
+    pub theta_rad: f32,
+    pub omega_rad_s: f32,
+    pub sigma_theta_rad: f32,
+    pub sigma_omega_rad_s: f32,
+    /// The part's fused pose in the base frame (Eq 1), once calibrated.
+    pub part_base_m: Option<[f32; 3]>,
+    pub part_yaw_base_rad: f32,
+    pub part_velocity_base_m_s: [f32; 3],
+    /// 1-sigma of the part's position from the estimator.
+    pub part_sigma_m: f32,
+    /// The grasp point (tool centre) measured through the joint encoders, and where it is sent.
+    pub tool_base_m: [f32; 3],
+    pub tool_reference_base_m: [f32; 3],
+    pub tool_yaw_rad: f32,
+    pub tool_reference_yaw_rad: f32,
+    /// Camera frames paired with their trigger, and those refused (unknown or stale trigger).
+    pub frames_paired: u32,
+    pub frames_unpaired: u32,
+    /// Control periods whose torque was clipped to the drive limits.
+    pub saturated_ticks: u32,
+}
+
+/// The result of a self-calibration, summarised for telemetry (f32).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationReport {
+    pub time_us: u64,
+    pub camera_height_m: f32,
+    /// Angle of the camera's optical axis from the disc's downward normal.
+    pub camera_tilt_rad: f32,
+    pub base_yaw_rad: f32,
+    pub base_translation_m: [f32; 3],
+    /// The part in the rotating frame (mean of its features) and its yaw.
+    pub part_rotating_m: [f32; 3],
+    pub part_yaw_rotating_rad: f32,
+    /// 1-sigma of the part position, the base translation and the base yaw.
+    pub sigma_part_m: f32,
+    pub sigma_base_m: f32,
+    pub sigma_base_yaw_rad: f32,
+    pub frames_used: u16,
+    pub effector_frames_used: u16,
+    pub rms_reprojection_px: f32,
+}
