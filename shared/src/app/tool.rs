@@ -26,9 +26,8 @@ pub fn effector_marks_base<T: RealField + Copy>(
     base_from_flange: &Isometry3<T>,
 ) -> [Vector3<T>; 2] {
     EFFECTOR_MARKS_FLANGE_M.map(|[x, y, z]| {
-        (base_from_flange
-            * nalgebra::Point3::new(convert::<f64, T>(x), convert(y), convert(z)))
-        .coords
+        (base_from_flange * nalgebra::Point3::new(convert::<f64, T>(x), convert(y), convert(z)))
+            .coords
     })
 }
 

@@ -16,7 +16,7 @@ use nalgebra::{
 };
 
 use super::grasp_pose::{gripper_down_rotation, nearest_equivalent_yaw};
-use super::ik::{solve_ik, IkConfig};
+use super::path::{check_joint_limits, sample_times, TaskPath};
 use super::{PlanError, Quintic};
 use crate::robot::{JointVector, Puma560};
 
@@ -168,15 +168,9 @@ impl<T: RealField + Copy> InterceptPlan<T> {
         }
     }
 
-    fn sample_times(&self, samples: usize) -> impl Iterator<Item = T> + '_ {
-        let n = samples.max(2);
-        let last: T = convert((n - 1) as f64);
-        (0..n).map(move |i| self.duration() * convert::<f64, T>(i as f64) / last)
-    }
-
     /// Whether the path keeps within the task-space limits at every sample.
     pub fn within_task_limits(&self, limits: &InterceptLimits<T>) -> bool {
-        self.sample_times(limits.samples).all(|t| {
+        sample_times(self.duration(), limits.samples).all(|t| {
             let s = self.sample(t);
             s.velocity.norm() <= limits.max_speed_m_s
                 && s.acceleration.norm() <= limits.max_acceleration_m_s2
@@ -184,9 +178,7 @@ impl<T: RealField + Copy> InterceptPlan<T> {
         })
     }
 
-    /// Proves the path in joint space from `q_start`: reachable at every sample,
-    /// joint speeds and torques within `fraction` of the robot's limits. Returns
-    /// the joint angles at the end.
+    /// Proves the path in joint space from `q_start` (see [`check_joint_limits`]).
     pub fn check_joint_limits(
         &self,
         robot: &Puma560<T>,
@@ -194,43 +186,18 @@ impl<T: RealField + Copy> InterceptPlan<T> {
         samples: usize,
         fraction: T,
     ) -> Result<JointVector<T>, PlanError> {
-        let limits = robot.joint_limits();
-        let ik = IkConfig::default();
-        let mut q = *q_start;
-        for t in self.sample_times(samples) {
-            let time_s: f64 = nalgebra::try_convert(t).unwrap_or(f64::NAN);
-            let state = self.sample(t);
-            q = solve_ik(robot, &state.pose(), &q, &ik)?;
-            let lu = robot.jacobian(&q).lu();
-            let qd = lu
-                .solve(&state.twist())
-                .ok_or(PlanError::Singular { time_s })?;
-            let bias = robot.jacobian_dot_qd(&q, &qd);
-            let qdd = lu
-                .solve(&(state.acceleration6() - bias))
-                .ok_or(PlanError::Singular { time_s })?;
-            if let Some(joint) = first_over(&qd, &limits.velocity_max, fraction) {
-                return Err(PlanError::JointVelocityLimit { joint, time_s });
-            }
-            let tau = robot.inverse_dynamics(&q, &qd, &qdd);
-            if let Some(joint) = first_over(&tau, &limits.torque_max, fraction) {
-                return Err(PlanError::JointTorqueLimit { joint, time_s });
-            }
-        }
-        Ok(q)
+        check_joint_limits(self, robot, q_start, samples, fraction)
     }
 }
 
-/// The first joint whose `|value|` exceeds `fraction * limit` (or is not finite).
-fn first_over<T: RealField + Copy>(
-    value: &JointVector<T>,
-    limit: &JointVector<T>,
-    fraction: T,
-) -> Option<usize> {
-    value
-        .iter()
-        .zip(limit.iter())
-        .position(|(v, l)| !(v.is_finite() && v.abs() <= *l * fraction))
+impl<T: RealField + Copy> TaskPath<T> for InterceptPlan<T> {
+    fn duration(&self) -> T {
+        InterceptPlan::duration(self)
+    }
+
+    fn sample(&self, t: T) -> TaskState<T> {
+        InterceptPlan::sample(self, t)
+    }
 }
 
 /// The earliest feasible intercept of `target_after(d)` (the target's state `d`
@@ -238,6 +205,19 @@ fn first_over<T: RealField + Copy>(
 pub fn plan_intercept<T: RealField + Copy>(
     start: &TaskState<T>,
     target_after: impl Fn(T) -> TaskState<T>,
+    limits: &InterceptLimits<T>,
+    robot: &Puma560<T>,
+    q_start: &JointVector<T>,
+) -> Result<InterceptPlan<T>, PlanError> {
+    plan_intercept_where(start, target_after, |_| true, limits, robot, q_start)
+}
+
+/// [`plan_intercept`] among the durations `d` for which `admissible(d)` holds
+/// (e.g. "the part stays within reach for the grasp that follows").
+pub fn plan_intercept_where<T: RealField + Copy>(
+    start: &TaskState<T>,
+    target_after: impl Fn(T) -> TaskState<T>,
+    admissible: impl Fn(T) -> bool,
     limits: &InterceptLimits<T>,
     robot: &Puma560<T>,
     q_start: &JointVector<T>,
@@ -261,6 +241,10 @@ pub fn plan_intercept<T: RealField + Copy>(
     let steps = scan_steps(limits)?;
     for step in 0..=steps {
         let d = limits.min_duration_s + limits.duration_step_s * convert::<f64, T>(step as f64);
+        if !admissible(d) {
+            previous_failed = Some(d);
+            continue;
+        }
         let plan = candidate(d)?;
         if plan.within_task_limits(limits)
             && plan
@@ -271,7 +255,13 @@ pub fn plan_intercept<T: RealField + Copy>(
                 previous_failed,
                 plan,
                 d,
-                &candidate,
+                &|mid| {
+                    if admissible(mid) {
+                        candidate(mid)
+                    } else {
+                        Err(PlanError::NoFeasibleIntercept)
+                    }
+                },
                 limits,
                 robot,
                 q_start,
@@ -376,6 +366,7 @@ fn validate<T: RealField + Copy>(limits: &InterceptLimits<T>) -> Result<(), Plan
 mod tests {
     use super::*;
     use crate::fusion::part_motion_in_base;
+    use crate::planning::{solve_ik, IkConfig};
 
     fn qn() -> JointVector<f64> {
         crate::planning::grasp_pose::ready_posture()

@@ -8,17 +8,25 @@
 //!   checks and joint-space feasibility of a plan).
 //! - [`intercept`]: the earliest smooth path that meets a moving part within task
 //!   and joint limits.
+//! - [`arc`]: rest-to-rest moves round the base axis (never through the shoulder singularity).
+//! - [`path`]: the path trait and the joint-space proof every plan passes.
 //! - [`grasp_pose`]: the gripper's pose above a part (pointing down, yaw following it).
 
+pub mod arc;
 pub mod grasp_pose;
 pub mod ik;
 pub mod intercept;
+pub mod path;
 pub mod quintic;
 
 mod error;
 
+pub use arc::{ArcLimits, ArcMove, ArcPoint};
 pub use error::PlanError;
 pub use grasp_pose::{gripper_down_rotation, nearest_equivalent_yaw, ready_posture};
 pub use ik::{solve_ik, IkConfig};
-pub use intercept::{plan_intercept, InterceptLimits, InterceptPlan, TaskState};
+pub use intercept::{
+    plan_intercept, plan_intercept_where, InterceptLimits, InterceptPlan, TaskState,
+};
+pub use path::{check_joint_limits, TaskPath};
 pub use quintic::Quintic;
