@@ -1,11 +1,14 @@
-//! The controller's link logic linked into this process: bytes sent are decoded
-//! and answered by `shared::app::LinkResponder` exactly as the firmware's link
-//! task does, and the framed replies are queued for `recv`.
+//! The controller application linked into this process: bytes sent are decoded
+//! and answered by `shared::app::ControllerApp` (the protocol session and, once
+//! configured, the pick) exactly as the firmware does, and the framed replies
+//! are queued for `recv`. Background work (self-calibration, planning) runs
+//! right after each message; the pick applies its results after a fixed
+//! simulated delay, so a run does not depend on this computer's speed.
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
-use shared::app::LinkResponder;
+use shared::app::{ControllerApp, MAX_REPLIES};
 use shared::protocol::{encode_frame, FrameDecoder, MAX_FRAME_LEN};
 
 use super::{ByteLink, LinkError};
@@ -15,7 +18,7 @@ pub const IN_PROCESS_CONTROL_RATE_HZ: u32 = 1_000;
 
 pub struct InProcessLink {
     decoder: FrameDecoder,
-    responder: LinkResponder,
+    app: ControllerApp,
     replies: VecDeque<u8>,
     /// Control ticks are wall-clock milliseconds since the link was made,
     /// standing in for the firmware's 1 kHz tick task.
@@ -26,7 +29,7 @@ impl InProcessLink {
     pub fn new() -> Self {
         InProcessLink {
             decoder: FrameDecoder::new(),
-            responder: LinkResponder::new("in-process", IN_PROCESS_CONTROL_RATE_HZ),
+            app: ControllerApp::new("in-process", IN_PROCESS_CONTROL_RATE_HZ),
             replies: VecDeque::new(),
             started: Instant::now(),
         }
@@ -46,17 +49,24 @@ impl ByteLink for InProcessLink {
             let Some(decoded) = self.decoder.push(byte) else {
                 continue;
             };
-            let reply = match decoded {
+            let mut replies: heapless::Vec<_, MAX_REPLIES> = heapless::Vec::new();
+            match decoded {
                 Ok(message) => {
-                    let ticks = self.started.elapsed().as_millis();
-                    self.responder
-                        .set_control_ticks(u64::try_from(ticks).unwrap_or(u64::MAX));
-                    self.responder.handle(&message)
+                    if self.app.pick().is_none() {
+                        let ticks = self.started.elapsed().as_millis();
+                        self.app
+                            .link_mut()
+                            .set_control_ticks(u64::try_from(ticks).unwrap_or(u64::MAX));
+                    }
+                    self.app.on_message(&message, &mut replies);
+                    self.app.run_background();
                 }
-                Err(e) => Some(self.responder.on_decode_error(&e)),
-            };
-            if let Some(reply) = reply {
-                let len = encode_frame(&reply, &mut frame)
+                Err(e) => {
+                    let _ = replies.push(self.app.on_decode_error(&e));
+                }
+            }
+            for reply in &replies {
+                let len = encode_frame(reply, &mut frame)
                     .map_err(|e| LinkError::Encode(e.to_string()))?;
                 self.replies.extend(frame.iter().take(len));
             }
@@ -79,6 +89,6 @@ impl ByteLink for InProcessLink {
     }
 
     fn describe(&self) -> String {
-        "in-process controller (shared::app::LinkResponder)".to_string()
+        "in-process controller (shared::app::ControllerApp)".to_string()
     }
 }

@@ -54,6 +54,11 @@ impl LinkResponder {
         self.status.deadline_misses = misses;
     }
 
+    /// Counts a valid frame that the application answered itself.
+    pub fn count_received(&mut self) {
+        self.status.frames_received = self.status.frames_received.wrapping_add(1);
+    }
+
     pub fn status(&self) -> ControllerStatus {
         self.status
     }

@@ -1,14 +1,19 @@
 //! The controller application: board-independent logic shared by the firmware and
 //! the in-process simulator link, so both run the same code.
 //!
+//! - [`ControllerApp`]: the session plus the pick, behind one message handler.
 //! - [`link`]: the protocol session (handshake, acknowledgements, status).
 //! - [`tool`]: the gripper's geometry (grasp point, the two marks the camera sees).
 //! - [`joint_observer`]: joint angles and speeds from quantised encoders.
+//! - [`pick`]: the pick's state machine, fusion at control rate and background jobs.
 //! - [`vision`]: camera frames paired with their trigger's encoder values, as observations.
 
+mod controller;
 pub mod joint_observer;
 mod link;
+pub mod pick;
 pub mod tool;
 pub mod vision;
 
+pub use controller::{ControllerApp, MAX_REPLIES};
 pub use link::LinkResponder;

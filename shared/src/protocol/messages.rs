@@ -129,6 +129,9 @@ pub enum ErrorCode {
     HandshakeRequired,
     /// A message only the controller sends was sent to it.
     UnexpectedMessage,
+    /// A cell configuration was refused; `detail` is the index of the first bad
+    /// field in `CellConfig`'s declaration order.
+    BadConfiguration,
 }
 
 /// Every message of protocol v1.

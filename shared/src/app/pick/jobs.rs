@@ -1,0 +1,171 @@
+//! The pick's slow computations, run outside the control loop: where to show the
+//! marks for the robot-to-disc calibration, and the intercept of the moving part.
+//!
+//! The control loop requests them and applies their results after a fixed delay
+//! (see `PickSettings::estimate_budget_s`), holding its reference meanwhile.
+
+use heapless::Vec;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+use super::estimate::CellEstimate;
+use super::motion::{flange_over, Prediction};
+use super::settings::PickSettings;
+use crate::app::tool::{effector_marks_base, TOOL_LENGTH_M};
+use crate::observation::CameraIntrinsics;
+use crate::planning::{
+    gripper_down_rotation, plan_intercept_where, solve_ik, ArcPoint, IkConfig, InterceptLimits,
+    InterceptPlan, PlanError, TaskState,
+};
+use crate::robot::{JointVector, Puma560};
+
+/// Most poses shown for the robot-to-disc calibration.
+pub const MAX_CALIBRATION_POSES: usize = 8;
+
+/// Closest a gripper-down grasp point may come to the base axis (the shoulder
+/// singularity, and the robot's own column).
+pub const MIN_RADIUS_FROM_BASE_AXIS_M: f32 = 0.30;
+
+/// Pixels the marks keep from the image border at a calibration pose.
+const VIEW_MARGIN_PX: f64 = 8.0;
+
+/// The flange pose, gripper down, that puts the grasp point at `tool`.
+fn flange_pose(tool: &Vector3<f32>, yaw: f32) -> Isometry3<f32> {
+    Isometry3::from_parts(
+        Translation3::from(tool + Vector3::new(0.0, 0.0, TOOL_LENGTH_M as f32)),
+        UnitQuaternion::from_rotation_matrix(&gripper_down_rotation(yaw)),
+    )
+}
+
+/// The wrist keeps its start configuration relative to the waist: the gripper's
+/// yaw turns with the azimuth.
+pub fn yaw_at_azimuth(start: &ArcPoint<f32>, azimuth: f32) -> f32 {
+    start.yaw_rad + (azimuth - start.azimuth_rad)
+}
+
+/// Poses above the disc (grasp point `calibration_heights_m` above the part's
+/// top, spread over the disc's near half) that the arm can reach gripper-down and
+/// the camera sees both marks from, in an order that keeps the moves short.
+/// `start` is the arm's start pose (for the wrist's yaw), `q_seed` its joints.
+pub fn calibration_poses(
+    estimate: &CellEstimate,
+    camera: &CameraIntrinsics,
+    start: &ArcPoint<f32>,
+    q_seed: &JointVector<f32>,
+    settings: &PickSettings,
+    robot: &Puma560<f32>,
+) -> Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES> {
+    let centre = estimate.disc_centre();
+    let distance = centre.xy().norm();
+    let radial = if distance > 1e-3 {
+        Vector3::new(centre.x / distance, centre.y / distance, 0.0)
+    } else {
+        Vector3::x()
+    };
+    let lateral = Vector3::new(-radial.y, radial.x, 0.0);
+    let part_top = estimate.disc_height() + estimate.part_rotating.z;
+    let mut poses = Vec::new();
+    let mut q = *q_seed;
+    let ik = IkConfig::default();
+    for (row, height) in settings.calibration_heights_m.iter().enumerate() {
+        for radial_offset in [-0.25_f32, -0.05] {
+            for step in 0..3 {
+                // Serpentine: alternate the lateral direction row by row.
+                let k = if row % 2 == 0 { step } else { 2 - step };
+                let side = (k as f32 - 1.0) * 0.25;
+                let tool = centre
+                    + radial * radial_offset
+                    + lateral * side
+                    + Vector3::new(0.0, 0.0, part_top - centre.z + height);
+                let point = ArcPoint::from_position(&tool, 0.0);
+                if point.radius_m < MIN_RADIUS_FROM_BASE_AXIS_M {
+                    continue;
+                }
+                let yaw = yaw_at_azimuth(start, point.azimuth_rad);
+                let pose = flange_pose(&tool, yaw);
+                let in_view = effector_marks_base(&pose).iter().all(|mark| {
+                    estimate.project(camera, mark).is_some_and(|[u, v]| {
+                        u >= VIEW_MARGIN_PX
+                            && v >= VIEW_MARGIN_PX
+                            && u <= f64::from(camera.width) - VIEW_MARGIN_PX
+                            && v <= f64::from(camera.height) - VIEW_MARGIN_PX
+                    })
+                });
+                if !in_view {
+                    continue;
+                }
+                let Ok(solution) = solve_ik(robot, &pose, &q, &ik) else {
+                    continue;
+                };
+                q = solution;
+                let flange = pose.translation.vector;
+                let mut arc = ArcPoint::from_position(&flange, yaw);
+                arc.yaw_rad = yaw;
+                if poses.push(arc).is_err() {
+                    return poses;
+                }
+            }
+        }
+    }
+    poses
+}
+
+/// The conveyor as the plan saw it: angle, speed, and the delay before the plan starts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ConveyorSnapshot {
+    pub theta: f32,
+    pub omega: f32,
+    pub lead_s: f32,
+}
+
+/// Whether the grasp pose over the part is reachable at conveyor angle `theta`.
+fn reachable_at(
+    estimate: &CellEstimate,
+    theta: f32,
+    q_seed: &JointVector<f32>,
+    robot: &Puma560<f32>,
+) -> bool {
+    let grasp = estimate.grasp_point(theta, 0.0, 0.0);
+    if grasp.position.xy().norm() < MIN_RADIUS_FROM_BASE_AXIS_M {
+        return false;
+    }
+    let pose = flange_pose(&grasp.position, grasp.yaw);
+    solve_ik(robot, &pose, q_seed, &IkConfig::default()).is_ok()
+}
+
+/// The earliest intercept of the part's hover point from `start` (at rest, joint
+/// angles `q_start`), among those after which the part stays reachable for
+/// `grasp_window_s`. The part's future comes from Eq 1 at constant conveyor speed.
+pub fn plan_part_intercept(
+    start: &TaskState<f32>,
+    q_start: &JointVector<f32>,
+    estimate: &CellEstimate,
+    conveyor: &ConveyorSnapshot,
+    settings: &PickSettings,
+    robot: &Puma560<f32>,
+) -> Result<(InterceptPlan<f32>, Prediction), PlanError> {
+    let prediction = Prediction {
+        theta_at_start: conveyor.theta + conveyor.omega * conveyor.lead_s,
+        omega: conveyor.omega,
+    };
+    let theta_after = |d: f32| prediction.theta_at_start + prediction.omega * d;
+    let target_after = |d: f32| {
+        flange_over(
+            &estimate.grasp_point(theta_after(d), prediction.omega, 0.0),
+            settings.hover_height_m,
+        )
+    };
+    let window = settings.grasp_window_s;
+    let admissible = |d: f32| {
+        (0..=3).all(|k| {
+            let tau = d + window * k as f32 / 3.0;
+            reachable_at(estimate, theta_after(tau), q_start, robot)
+        })
+    };
+    let limits = InterceptLimits {
+        max_duration_s: 14.0,
+        duration_step_s: 0.2,
+        ..InterceptLimits::default()
+    };
+    let plan = plan_intercept_where(start, target_after, admissible, &limits, robot, q_start)?;
+    Ok((plan, prediction))
+}

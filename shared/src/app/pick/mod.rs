@@ -1,0 +1,944 @@
+//! The pick: the controller application's state machine (paper Fig 3), run at
+//! control rate by the firmware and by the in-process simulator alike.
+//!
+//! Nothing is known at the start but the cell configuration (intrinsics, the
+//! reference radius, encoder scales, the drop-off). The controller:
+//! 1. sweeps the gripper's two marks round the robot at travel height while the
+//!    disc turns, until the camera has seen them (the disc's and the camera's
+//!    pose come from the reference mark's ellipse, Section 2.1);
+//! 2. estimates a first calibration (Sections 2 and 3), then shows the marks at
+//!    poses chosen over the disc, in view, and estimates again: `base_from_disc`
+//!    (Eqs 10 to 15) and the part in the rotating frame (Eqs 3 to 8);
+//! 3. waits for a steady conveyor, plans the earliest smooth intercept that the
+//!    joints can follow and after which the part stays in reach, and meets the
+//!    part (Eq 1 fused at control rate with the conveyor encoder);
+//! 4. tracks it, descends, grasps, lifts, carries it to the drop-off round the
+//!    base axis, releases it and returns to the start pose.
+//!
+//! Every phase has a timeout; a fault (calibration refused, marks never seen,
+//! vision stale, encoder jump, tracking error, part out of reach, control
+//! failure) brings the arm to a controlled stop (decelerate, then hold) and is
+//! reported with its cause.
+
+pub mod cell;
+pub mod estimate;
+pub mod jobs;
+pub mod motion;
+pub mod settings;
+
+use heapless::Vec;
+use nalgebra::{Vector3, Vector6};
+
+use self::cell::{Cell, ConfigError};
+use self::estimate::CellEstimate;
+use self::jobs::{
+    calibration_poses, plan_part_intercept, yaw_at_azimuth, ConveyorSnapshot,
+    MAX_CALIBRATION_POSES,
+};
+use self::motion::{height_profile, Motion, Prediction};
+use self::settings::PickSettings;
+use super::joint_observer::JointObserver;
+use super::tool::{tool_point_base, TOOL_LENGTH_M};
+use super::vision::{observation_from_frame, VisionError};
+use crate::calibration::{CalibrationError, SelfCalibrator};
+use crate::control::{
+    AxisGains, ControllerConfig, DampingConfig, TaskGains, TaskReference, TaskSpaceController,
+};
+use crate::fusion::conveyor::wrap_pi;
+use crate::fusion::{ConveyorFilter, ConveyorState, LatchedSample, TriggerLatch};
+use crate::planning::{
+    ArcLimits, ArcMove, ArcPoint, InterceptPlan, PlanError, TaskState,
+};
+use crate::protocol::{
+    ActuatorCommand, CameraFeatureFrame, CellConfig, FaultCause, GripperCommand, Message,
+    PickPhase, PickTelemetry, SensorSample,
+};
+use crate::robot::{DriveOptions, JointVector, Puma560, SIMULATOR_COULOMB_WIDTH};
+
+/// The controller's calibrator: 96 frames and 48 sightings of the marks (about
+/// 12 KiB), the same in the firmware and in the simulator.
+pub type PickCalibrator = SelfCalibrator<96, 48>;
+
+/// Triggers awaiting their frames (frames later than 8 periods are stale).
+const PENDING_TRIGGERS: usize = 8;
+
+/// Messages one control tick may emit besides its actuator command.
+pub const MAX_TICK_MESSAGES: usize = 3;
+
+/// The fine-grained steps behind the reported [`PickPhase`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Step {
+    Start,
+    SearchApproach,
+    SearchSweep,
+    EstimatePreliminary,
+    CalibrateMove(u8),
+    CalibrateDwell(u8),
+    EstimateFinal,
+    Locate,
+    Intercept,
+    Track,
+    Descend,
+    GraspSettle,
+    GraspClose,
+    Lift,
+    PlaceTransfer,
+    PlaceLower,
+    Release,
+    ReturnRaise,
+    ReturnTransfer,
+    Done,
+    Stopping,
+    Faulted,
+}
+
+impl Step {
+    fn phase(self) -> PickPhase {
+        match self {
+            Self::Start => PickPhase::Idle,
+            Self::SearchApproach | Self::SearchSweep => PickPhase::SearchEffector,
+            Self::CalibrateMove(_) | Self::CalibrateDwell(_) => PickPhase::CalibrateBase,
+            Self::EstimatePreliminary | Self::EstimateFinal => PickPhase::Estimating,
+            Self::Locate => PickPhase::Locate,
+            Self::Intercept => PickPhase::Intercept,
+            Self::Track => PickPhase::Track,
+            Self::Descend => PickPhase::Descend,
+            Self::GraspSettle | Self::GraspClose => PickPhase::Grasp,
+            Self::Lift => PickPhase::Lift,
+            Self::PlaceTransfer | Self::PlaceLower => PickPhase::Place,
+            Self::Release => PickPhase::Release,
+            Self::ReturnRaise | Self::ReturnTransfer => PickPhase::Return,
+            Self::Done => PickPhase::Done,
+            Self::Stopping => PickPhase::Stopping,
+            Self::Faulted => PickPhase::Faulted,
+        }
+    }
+
+    /// Steps that need fresh camera frames (before the grasp).
+    fn needs_vision(self) -> bool {
+        matches!(
+            self,
+            Self::SearchApproach
+                | Self::SearchSweep
+                | Self::CalibrateMove(_)
+                | Self::CalibrateDwell(_)
+                | Self::Locate
+                | Self::Intercept
+                | Self::Track
+                | Self::Descend
+        )
+    }
+
+    /// Steps whose observations may feed the calibrator: the part still sits on the disc.
+    fn part_on_disc(self) -> bool {
+        !matches!(
+            self,
+            Self::GraspClose
+                | Self::Lift
+                | Self::PlaceTransfer
+                | Self::PlaceLower
+                | Self::Release
+                | Self::ReturnRaise
+                | Self::ReturnTransfer
+                | Self::Done
+        )
+    }
+}
+
+/// Background work the control loop has asked for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum JobRequest {
+    Estimate { preliminary: bool },
+    Plan {
+        start: TaskState<f32>,
+        q_start: JointVector<f32>,
+        conveyor: ConveyorSnapshot,
+    },
+}
+
+/// Its result.
+#[derive(Debug, Clone, PartialEq)]
+enum JobOutcome {
+    Estimate(Result<(CellEstimate, Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>), FaultCause>),
+    Plan(Result<(InterceptPlan<f32>, Prediction), PlanError>),
+}
+
+/// A job in flight: requested, maybe computed, applied at `apply_at_s`.
+#[derive(Debug, Clone, PartialEq)]
+struct Job {
+    request: JobRequest,
+    outcome: Option<JobOutcome>,
+    apply_at_s: f32,
+}
+
+/// Counters of what the controller refused or clipped.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct PickCounters {
+    pub frames_paired: u32,
+    pub frames_unpaired: u32,
+    /// Paired frames the calibrator refused (invalid detections, time going back).
+    pub frames_refused: u32,
+    pub saturated_ticks: u32,
+    pub effector_sightings: u32,
+}
+
+/// The controller application of the pick.
+#[derive(Debug, Clone)]
+pub struct PickController {
+    cell: Cell,
+    settings: PickSettings,
+    model: Puma560<f32>,
+    kinematics: Puma560<f64>,
+    controller: TaskSpaceController<f32>,
+    observer: JointObserver,
+    conveyor: ConveyorFilter<f32>,
+    conveyor_state: Option<ConveyorState<f32>>,
+    latch: TriggerLatch<PENDING_TRIGGERS>,
+    calibrator: PickCalibrator,
+    start_time_us: Option<u64>,
+    last_time_us: u64,
+    now_s: f32,
+    ticks: u64,
+    next_trigger_s: f32,
+    next_trigger_id: u32,
+    last_paired_s: f32,
+    step: Step,
+    step_started_s: f32,
+    motion: Motion,
+    reference: TaskState<f32>,
+    gripper: GripperCommand,
+    fault: Option<FaultCause>,
+    start_pose: ArcPoint<f32>,
+    estimate: Option<CellEstimate>,
+    poses: Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>,
+    job: Option<Job>,
+    next_plan_attempt_s: f32,
+    transfer_z: f32,
+    estimate_serial: u32,
+    qdd_commanded: JointVector<f32>,
+    tool_measured: Vector3<f32>,
+    tool_yaw_measured: f32,
+    counters: PickCounters,
+}
+
+/// Eq 23's gains for the pick: error poles at 40 rad/s, critically damped, an
+/// integrator at 10 rad/s for the unknown payload (and the part, once grasped).
+fn controller_config() -> Result<ControllerConfig<f32>, ConfigError> {
+    let gains = AxisGains::from_poles(40.0_f32, 1.0, 10.0).map_err(|_| ConfigError {
+        field: "controller gains",
+    })?;
+    Ok(ControllerConfig {
+        gains: TaskGains {
+            position: gains,
+            orientation: gains,
+        },
+        position_integral_limit: 0.005,
+        orientation_integral_limit: 0.02,
+        damping: DampingConfig {
+            manipulability_threshold: 0.01,
+            max_damping: 0.05,
+        },
+    })
+}
+
+impl PickController {
+    /// A controller for the cell `config`, with the pick's default settings.
+    pub fn new(config: &CellConfig) -> Result<Self, ConfigError> {
+        Self::with_settings(config, PickSettings::default())
+    }
+
+    pub fn with_settings(config: &CellConfig, settings: PickSettings) -> Result<Self, ConfigError> {
+        let cell = Cell::new(config)?;
+        let calibrator = PickCalibrator::new(&cell.log_header(), cell.calibration_config())
+            .map_err(|_| ConfigError {
+                field: "camera intrinsics or reference_radius_m",
+            })?;
+        let conveyor = ConveyorFilter::new(config.conveyor_counts_per_rev, cell.counter_width, 1.0)
+            .map_err(|_| ConfigError {
+                field: "conveyor_counts_per_rev",
+            })?;
+        let model = Puma560::<f64>::new()
+            .with_drive(DriveOptions {
+                armature: true,
+                friction: true,
+            })
+            .try_with_coulomb_smoothing(SIMULATOR_COULOMB_WIDTH)
+            .map_err(|_| ConfigError {
+                field: "controller model",
+            })?
+            .cast::<f32>();
+        let controller = TaskSpaceController::new(controller_config()?).map_err(|_| ConfigError {
+            field: "controller gains",
+        })?;
+        let rest = TaskState::at_rest(Vector3::zeros(), 0.0);
+        Ok(Self {
+            cell,
+            settings,
+            model,
+            kinematics: Puma560::new(),
+            controller,
+            observer: JointObserver::new(150.0, 0.05),
+            conveyor,
+            conveyor_state: None,
+            latch: TriggerLatch::new(),
+            calibrator,
+            start_time_us: None,
+            last_time_us: 0,
+            now_s: 0.0,
+            ticks: 0,
+            next_trigger_s: 0.0,
+            next_trigger_id: 1,
+            last_paired_s: 0.0,
+            step: Step::Start,
+            step_started_s: 0.0,
+            motion: Motion::Hold(rest),
+            reference: rest,
+            gripper: GripperCommand::Open,
+            fault: None,
+            start_pose: ArcPoint {
+                radius_m: 0.0,
+                azimuth_rad: 0.0,
+                z_m: 0.0,
+                yaw_rad: 0.0,
+            },
+            estimate: None,
+            poses: Vec::new(),
+            job: None,
+            next_plan_attempt_s: 0.0,
+            transfer_z: 0.0,
+            estimate_serial: 0,
+            qdd_commanded: JointVector::zeros(),
+            tool_measured: Vector3::zeros(),
+            tool_yaw_measured: 0.0,
+            counters: PickCounters::default(),
+        })
+    }
+
+    pub fn phase(&self) -> PickPhase {
+        self.step.phase()
+    }
+
+    pub fn fault(&self) -> Option<FaultCause> {
+        self.fault
+    }
+
+    pub fn estimate(&self) -> Option<&CellEstimate> {
+        self.estimate.as_ref()
+    }
+
+    pub fn counters(&self) -> PickCounters {
+        self.counters
+    }
+
+    /// Seconds since the first sensor sample.
+    pub fn time_s(&self) -> f32 {
+        self.now_s
+    }
+
+    /// A camera frame has arrived: pair it with its trigger and give it to the
+    /// calibrator (the low-priority side's work).
+    pub fn on_camera_frame(&mut self, frame: &CameraFeatureFrame) -> Result<(), VisionError> {
+        let Some(latched) = self.latch.take(frame.trigger_id) else {
+            self.counters.frames_unpaired = self.counters.frames_unpaired.saturating_add(1);
+            return Err(VisionError::UnknownTrigger {
+                trigger_id: frame.trigger_id,
+            });
+        };
+        self.counters.frames_paired = self.counters.frames_paired.saturating_add(1);
+        self.last_paired_s = self.now_s;
+        if !self.step.part_on_disc() || matches!(self.step, Step::Stopping | Step::Faulted) {
+            return Ok(());
+        }
+        let observation = self.observation(frame, &latched)?;
+        let sighting = observation.effector.is_some();
+        match self.calibrator.push(&observation) {
+            Ok(()) if sighting => {
+                self.counters.effector_sightings = self.counters.effector_sightings.saturating_add(1)
+            }
+            Ok(()) => {}
+            Err(_) => self.counters.frames_refused = self.counters.frames_refused.saturating_add(1),
+        }
+        Ok(())
+    }
+
+    fn observation(
+        &self,
+        frame: &CameraFeatureFrame,
+        latched: &LatchedSample,
+    ) -> Result<crate::observation::ObservationFrame, VisionError> {
+        let start = self.start_time_us.unwrap_or(latched.time_us);
+        let t_s = latched.time_us.saturating_sub(start) as f64 * 1e-6;
+        let theta = self.conveyor.theta_of_counts(latched.conveyor_counts);
+        observation_from_frame(
+            frame,
+            latched,
+            t_s,
+            theta,
+            usize::from(self.cell.config.part_feature_count),
+            &self.kinematics,
+        )
+    }
+
+    /// Runs the pending background job (estimate or plan), if any. The firmware
+    /// calls this from its low-priority task; the simulator after every message.
+    pub fn run_background(&mut self) {
+        let Some(job) = self.job.as_mut() else {
+            return;
+        };
+        if job.outcome.is_some() {
+            return;
+        }
+        let request = job.request;
+        let outcome = match request {
+            JobRequest::Estimate { preliminary } => JobOutcome::Estimate(self.estimate_job(preliminary)),
+            JobRequest::Plan {
+                start,
+                q_start,
+                conveyor,
+            } => JobOutcome::Plan(match self.estimate.as_ref() {
+                Some(estimate) => plan_part_intercept(
+                    &start,
+                    &q_start,
+                    estimate,
+                    &conveyor,
+                    &self.settings,
+                    &self.model,
+                ),
+                None => Err(PlanError::NoFeasibleIntercept),
+            }),
+        };
+        if let Some(job) = self.job.as_mut() {
+            job.outcome = Some(outcome);
+        }
+    }
+
+    fn estimate_job(
+        &mut self,
+        preliminary: bool,
+    ) -> Result<(CellEstimate, Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>), FaultCause> {
+        let time_us = self.last_time_us;
+        let (result, sigma) = self
+            .calibrator
+            .estimate_with_uncertainty()
+            .map_err(|error| match error {
+                CalibrationError::TooFewObservations {
+                    what: "end-effector sightings",
+                    ..
+                } => FaultCause::EffectorNotSeen,
+                _ => FaultCause::CalibrationFailed,
+            })?;
+        let estimate = CellEstimate::new(&result, &sigma, time_us);
+        let report = &estimate.report;
+        let trusted = report.sigma_part_m.is_finite()
+            && report.sigma_base_m.is_finite()
+            && (preliminary || report.sigma_part_m <= self.settings.max_part_sigma_m)
+            && (preliminary || report.sigma_base_m <= self.settings.max_base_sigma_m);
+        if !trusted {
+            return Err(FaultCause::CalibrationFailed);
+        }
+        let poses = if preliminary {
+            calibration_poses(
+                &estimate,
+                &self.cell.log_header().camera,
+                &self.start_pose,
+                &self.observer.q(),
+                &self.settings,
+                &self.model,
+            )
+        } else {
+            Vec::new()
+        };
+        Ok((estimate, poses))
+    }
+
+    /// One control period: the sensor sample in, the actuator command (and any
+    /// telemetry) out.
+    pub fn on_sensor_sample(
+        &mut self,
+        sample: &SensorSample,
+        out: &mut Vec<Message, MAX_TICK_MESSAGES>,
+    ) -> ActuatorCommand {
+        let start_us = *self.start_time_us.get_or_insert(sample.time_us);
+        let dt_s = if self.ticks == 0 {
+            0.0
+        } else {
+            sample.time_us.saturating_sub(self.last_time_us) as f32 * 1e-6
+        };
+        self.now_s = sample.time_us.saturating_sub(start_us) as f32 * 1e-6;
+        self.last_time_us = sample.time_us;
+        self.ticks = self.ticks.saturating_add(1);
+
+        let q_measured = self.cell.joint_angles(&sample.joint_counts);
+        if self.observer.update(&q_measured, &self.qdd_commanded, dt_s).is_err() && self.ticks > 1 {
+            self.raise(FaultCause::JointEncoder);
+        }
+        match self.conveyor.update(sample.conveyor_counts, sample.time_us) {
+            Ok(state) => self.conveyor_state = Some(state),
+            Err(_) => self.raise(FaultCause::ConveyorEncoder),
+        }
+        let q = self.observer.q();
+        let flange = self.model.forward_kinematics(&q);
+        self.tool_measured = tool_point_base(&flange);
+        let x_axis = flange.rotation * Vector3::x();
+        self.tool_yaw_measured = libm::atan2f(x_axis.y, x_axis.x);
+
+        let camera_trigger = self.camera_trigger(sample, &q_measured);
+        if self.step == Step::Start {
+            self.begin(&flange);
+        }
+        self.advance();
+        if self.step.needs_vision() && self.now_s - self.last_paired_s > self.settings.vision_stale_s {
+            self.raise(FaultCause::VisionStale);
+        }
+
+        let part = self.part_now();
+        let estimate = self.estimate;
+        let prediction = match self.motion {
+            Motion::Intercept { prediction, .. } => Some(prediction),
+            _ => None,
+        };
+        let predicted = |t: f32| {
+            let (estimate, p) = (estimate.as_ref()?, prediction?);
+            Some(estimate.grasp_point(p.theta_at_start + p.omega * t, p.omega, 0.0))
+        };
+        let reference = self.motion.reference(
+            self.now_s,
+            part.as_ref(),
+            predicted,
+            self.settings.hover_height_m,
+            &self.reference,
+        );
+        self.reference = reference;
+
+        let tau = self.control(&q, dt_s);
+        self.emit_telemetry(&part, out);
+        ActuatorCommand {
+            seq: sample.seq,
+            joint_torque_nm: tau,
+            gripper: self.gripper,
+            camera_trigger,
+        }
+    }
+
+    /// Eq 23 towards the reference; faults on divergence or a failed law.
+    fn control(&mut self, q: &JointVector<f32>, dt_s: f32) -> [f32; 6] {
+        let reference = TaskReference {
+            base_from_flange: self.reference.pose(),
+            twist: self.reference.twist(),
+            acceleration: self.reference.acceleration6(),
+        };
+        let dt = if dt_s > 0.0 { dt_s } else { 1e-3 };
+        let output = self
+            .controller
+            .step(&self.model, q, &self.observer.qd(), &reference, dt);
+        if output.fallback.is_some() {
+            self.raise(FaultCause::ControlFailure);
+        }
+        if output.saturated {
+            self.counters.saturated_ticks = self.counters.saturated_ticks.saturating_add(1);
+        }
+        self.qdd_commanded = if output.qdd.iter().all(|x| x.is_finite()) {
+            output.qdd
+        } else {
+            JointVector::zeros()
+        };
+        if output.position_error.norm() > self.settings.tracking_error_limit_m {
+            self.raise(FaultCause::TrackingError);
+        }
+        let mut tau = [0.0_f32; 6];
+        for (t, value) in tau.iter_mut().zip(output.tau.iter()) {
+            *t = *value;
+        }
+        tau
+    }
+
+    /// Fires the camera every period and latches the encoders with the trigger.
+    fn camera_trigger(&mut self, sample: &SensorSample, q: &JointVector<f32>) -> Option<u32> {
+        if self.now_s + 1e-6 < self.next_trigger_s {
+            return None;
+        }
+        let period_s = f32::from(self.cell.config.camera_period_ms) * 1e-3;
+        self.next_trigger_s += period_s;
+        if self.next_trigger_s <= self.now_s {
+            self.next_trigger_s = self.now_s + period_s;
+        }
+        let trigger_id = self.next_trigger_id;
+        self.next_trigger_id = self.next_trigger_id.wrapping_add(1);
+        let mut joint_q = [0.0_f32; 6];
+        for (slot, value) in joint_q.iter_mut().zip(q.iter()) {
+            *slot = *value;
+        }
+        self.latch.latch(LatchedSample {
+            trigger_id,
+            conveyor_counts: self.conveyor.total_counts(),
+            time_us: sample.time_us,
+            joint_q,
+        });
+        Some(trigger_id)
+    }
+
+    /// The grasp point's live state (Eq 1 with the conveyor filter), once calibrated.
+    fn part_now(&self) -> Option<TaskState<f32>> {
+        let estimate = self.estimate.as_ref()?;
+        let state = self.conveyor_state?;
+        Some(estimate.grasp_point(state.theta_wrapped, state.omega, state.alpha))
+    }
+
+    /// The first sample: remember where the arm starts and hold it there.
+    fn begin(&mut self, flange: &nalgebra::Isometry3<f32>) {
+        let x_axis = flange.rotation * Vector3::x();
+        let yaw = libm::atan2f(x_axis.y, x_axis.x);
+        let position = flange.translation.vector;
+        self.start_pose = ArcPoint::from_position(&position, yaw);
+        self.reference = TaskState::at_rest(position, yaw);
+        self.motion = Motion::Hold(self.reference);
+        self.last_paired_s = self.now_s;
+        self.enter(Step::SearchApproach);
+    }
+
+    fn raise(&mut self, cause: FaultCause) {
+        if matches!(self.step, Step::Stopping | Step::Faulted) {
+            return;
+        }
+        self.fault = Some(cause);
+        self.job = None;
+        self.enter(Step::Stopping);
+    }
+
+    /// An azimuth equivalent to `azimuth` within half a turn of the start's, so
+    /// arcs never swing the waist through the back of the robot.
+    fn azimuth_near_start(&self, azimuth: f32) -> f32 {
+        self.start_pose.azimuth_rad + wrap_pi(azimuth - self.start_pose.azimuth_rad)
+    }
+
+    /// An arc from the present reference (at rest) to `target`.
+    fn arc_to(&mut self, target: ArcPoint<f32>) -> Result<Motion, PlanError> {
+        let mut from = ArcPoint::from_position(&self.reference.position, self.reference.yaw);
+        from.azimuth_rad = self.azimuth_near_start(from.azimuth_rad);
+        let path = ArcMove::new(&from, &target, &ArcLimits::default())?;
+        Ok(Motion::Arc {
+            path,
+            start_s: self.now_s,
+        })
+    }
+
+    /// The flange arc point over `tool` (a grasp-point position), wrist as at the start.
+    fn arc_point_over(&self, tool: &Vector3<f32>, z_flange: f32) -> ArcPoint<f32> {
+        let mut point = ArcPoint::from_position(tool, 0.0);
+        point.azimuth_rad = self.azimuth_near_start(point.azimuth_rad);
+        point.yaw_rad = yaw_at_azimuth(&self.start_pose, point.azimuth_rad);
+        point.z_m = z_flange;
+        point
+    }
+
+    fn request(&mut self, request: JobRequest, budget_s: f32) {
+        self.job = Some(Job {
+            request,
+            outcome: None,
+            apply_at_s: self.now_s + budget_s,
+        });
+    }
+
+    /// The job's outcome once its delay has passed.
+    fn take_outcome(&mut self) -> Option<JobOutcome> {
+        let ready = self
+            .job
+            .as_ref()
+            .is_some_and(|job| job.outcome.is_some() && self.now_s >= job.apply_at_s);
+        if ready {
+            self.job.take().and_then(|job| job.outcome)
+        } else {
+            None
+        }
+    }
+
+    fn hold_here(&mut self) {
+        self.motion = Motion::Hold(TaskState::at_rest(self.reference.position, self.reference.yaw));
+    }
+
+    /// Enters `step`, setting the motion it starts with.
+    fn enter(&mut self, step: Step) {
+        self.step = step;
+        self.step_started_s = self.now_s;
+        let settings = self.settings;
+        let travel_z = settings.search_tool_height_m + TOOL_LENGTH_M as f32;
+        let motion = match step {
+            Step::Start | Step::Done | Step::Faulted => {
+                self.hold_here();
+                return;
+            }
+            Step::SearchApproach | Step::SearchSweep => {
+                let side = if step == Step::SearchApproach { -1.0 } else { 1.0 };
+                let azimuth = self.start_pose.azimuth_rad + side * settings.search_half_sweep_rad;
+                self.arc_to(ArcPoint {
+                    radius_m: settings.search_radius_m,
+                    azimuth_rad: azimuth,
+                    z_m: travel_z,
+                    yaw_rad: yaw_at_azimuth(&self.start_pose, azimuth),
+                })
+            }
+            Step::EstimatePreliminary | Step::EstimateFinal => {
+                self.hold_here();
+                let preliminary = step == Step::EstimatePreliminary;
+                self.request(JobRequest::Estimate { preliminary }, settings.estimate_budget_s);
+                return;
+            }
+            Step::CalibrateMove(i) => match self.poses.get(usize::from(i)).copied() {
+                Some(mut target) => {
+                    target.azimuth_rad = self.azimuth_near_start(target.azimuth_rad);
+                    self.arc_to(target)
+                }
+                None => {
+                    self.enter(Step::EstimateFinal);
+                    return;
+                }
+            },
+            Step::CalibrateDwell(_) | Step::Locate | Step::Release => {
+                self.hold_here();
+                if step == Step::Release {
+                    self.gripper = GripperCommand::Open;
+                }
+                return;
+            }
+            Step::Intercept => return,
+            Step::Track | Step::Descend | Step::GraspSettle => {
+                let (from, to, duration) = match step {
+                    Step::Descend => (settings.hover_height_m, 0.0, settings.descend_s),
+                    Step::Track => (settings.hover_height_m, settings.hover_height_m, 1.0),
+                    _ => (0.0, 0.0, 1.0),
+                };
+                match height_profile(from, to, duration) {
+                    Some(offset) => Ok(Motion::Follow {
+                        offset,
+                        start_s: self.now_s,
+                    }),
+                    None => Err(PlanError::InvalidDuration),
+                }
+            }
+            Step::GraspClose => {
+                self.gripper = GripperCommand::Close;
+                return;
+            }
+            Step::Lift => {
+                let start = self.reference;
+                let mut end = TaskState::at_rest(
+                    start.position
+                        + start.velocity * (0.5 * settings.lift_s)
+                        + Vector3::new(0.0, 0.0, settings.lift_height_m),
+                    start.yaw,
+                );
+                end.yaw = start.yaw + start.yaw_rate * (0.5 * settings.lift_s);
+                InterceptPlan::between(&start, &end, settings.lift_s, core::f32::consts::PI).map(
+                    |path| Motion::Quintic {
+                        path,
+                        start_s: self.now_s,
+                    },
+                )
+            }
+            Step::PlaceTransfer => {
+                let drop_hover_z =
+                    self.cell.drop_off_base.z + TOOL_LENGTH_M as f32 + settings.drop_hover_m;
+                self.transfer_z = self.reference.position.z.max(drop_hover_z);
+                let target = self.arc_point_over(&self.cell.drop_off_base.clone(), self.transfer_z);
+                self.arc_to(target)
+            }
+            Step::PlaceLower => {
+                let z = self.cell.drop_off_base.z + TOOL_LENGTH_M as f32;
+                let target = self.arc_point_over(&self.cell.drop_off_base.clone(), z);
+                self.arc_to(target)
+            }
+            Step::ReturnRaise => {
+                let target = self.arc_point_over(&self.cell.drop_off_base.clone(), self.transfer_z);
+                self.arc_to(target)
+            }
+            Step::ReturnTransfer => {
+                let mut target = self.start_pose;
+                target.azimuth_rad = self.azimuth_near_start(target.azimuth_rad);
+                self.arc_to(target)
+            }
+            Step::Stopping => {
+                let start = self.reference;
+                let near_part = matches!(
+                    self.motion,
+                    Motion::Follow { .. } | Motion::Intercept { .. }
+                );
+                let rise = if near_part { settings.stop_rise_m } else { 0.0 };
+                let end = TaskState::at_rest(
+                    start.position
+                        + start.velocity * (0.5 * settings.stop_s)
+                        + Vector3::new(0.0, 0.0, rise),
+                    start.yaw + start.yaw_rate * (0.5 * settings.stop_s),
+                );
+                InterceptPlan::between(&start, &end, settings.stop_s, core::f32::consts::PI).map(
+                    |path| Motion::Quintic {
+                        path,
+                        start_s: self.now_s,
+                    },
+                )
+            }
+        };
+        match motion {
+            Ok(motion) => self.motion = motion,
+            Err(_) if step == Step::Stopping => self.hold_here(),
+            Err(_) => self.raise(FaultCause::PartUnreachable),
+        }
+    }
+
+    /// Transitions of the state machine at this tick.
+    fn advance(&mut self) {
+        let now = self.now_s;
+        let in_step = now - self.step_started_s;
+        let finished = self.motion.finished(now);
+        let settings = self.settings;
+        match self.step {
+            Step::Start | Step::Done | Step::Faulted => {}
+            Step::SearchApproach if finished => self.enter(Step::SearchSweep),
+            Step::SearchSweep if finished => {
+                if self.counters.effector_sightings < settings.min_effector_sightings {
+                    self.raise(FaultCause::EffectorNotSeen);
+                } else {
+                    self.enter(Step::EstimatePreliminary);
+                }
+            }
+            Step::EstimatePreliminary | Step::EstimateFinal => self.on_estimate(in_step),
+            Step::CalibrateMove(i) if finished => self.enter(Step::CalibrateDwell(i)),
+            Step::CalibrateDwell(i) if in_step >= settings.calibration_dwell_s => {
+                self.enter(Step::CalibrateMove(i.saturating_add(1)))
+            }
+            Step::Locate => self.locate(in_step),
+            Step::Intercept if finished => self.enter(Step::Track),
+            Step::Track => {
+                let error = (self.tool_measured
+                    - (self.reference.position - Vector3::new(0.0, 0.0, TOOL_LENGTH_M as f32)))
+                    .norm();
+                if in_step >= settings.track_settle_s && error <= settings.track_tolerance_m {
+                    self.enter(Step::Descend);
+                } else if in_step >= settings.track_timeout_s {
+                    self.raise(FaultCause::TrackingError);
+                }
+            }
+            Step::Descend if in_step >= settings.descend_s => self.enter(Step::GraspSettle),
+            Step::GraspSettle if in_step >= settings.grasp_settle_s => self.enter(Step::GraspClose),
+            Step::GraspClose if in_step >= settings.grasp_close_s => self.enter(Step::Lift),
+            Step::Lift if finished => self.enter(Step::PlaceTransfer),
+            Step::PlaceTransfer if finished => self.enter(Step::PlaceLower),
+            Step::PlaceLower if finished => self.enter(Step::Release),
+            Step::Release if in_step >= settings.release_s => self.enter(Step::ReturnRaise),
+            Step::ReturnRaise if finished => self.enter(Step::ReturnTransfer),
+            Step::ReturnTransfer if finished => self.enter(Step::Done),
+            Step::Stopping if finished => self.enter(Step::Faulted),
+            _ => {}
+        }
+    }
+
+    fn on_estimate(&mut self, in_step: f32) {
+        let preliminary = self.step == Step::EstimatePreliminary;
+        match self.take_outcome() {
+            Some(JobOutcome::Estimate(Ok((estimate, poses)))) => {
+                self.estimate = Some(estimate);
+                self.estimate_serial = self.estimate_serial.wrapping_add(1);
+                if preliminary {
+                    self.poses = poses;
+                    self.enter(Step::CalibrateMove(0));
+                } else {
+                    self.enter(Step::Locate);
+                }
+            }
+            Some(JobOutcome::Estimate(Err(cause))) => self.raise(cause),
+            Some(JobOutcome::Plan(_)) => self.raise(FaultCause::Timeout),
+            None if in_step > 4.0 * self.settings.estimate_budget_s + 1.0 => {
+                self.raise(FaultCause::Timeout)
+            }
+            None => {}
+        }
+    }
+
+    /// Waits for a steady conveyor, asks for an intercept, and starts it.
+    fn locate(&mut self, in_step: f32) {
+        match self.take_outcome() {
+            Some(JobOutcome::Plan(Ok((plan, prediction)))) => {
+                self.motion = Motion::Intercept {
+                    plan,
+                    start_s: self.now_s,
+                    prediction,
+                };
+                self.controller.reset();
+                self.step = Step::Intercept;
+                self.step_started_s = self.now_s;
+                return;
+            }
+            Some(JobOutcome::Plan(Err(_))) => {
+                self.next_plan_attempt_s = self.now_s + 0.5;
+            }
+            Some(JobOutcome::Estimate(_)) | None => {}
+        }
+        if in_step > self.settings.locate_timeout_s {
+            self.raise(FaultCause::PartUnreachable);
+            return;
+        }
+        let Some(state) = self.conveyor_state else {
+            return;
+        };
+        let steady = state.alpha.abs() <= self.settings.steady_alpha_rad_s2;
+        if self.job.is_none() && steady && self.now_s >= self.next_plan_attempt_s {
+            let start = TaskState::at_rest(self.reference.position, self.reference.yaw);
+            let request = JobRequest::Plan {
+                start,
+                q_start: self.observer.q(),
+                conveyor: ConveyorSnapshot {
+                    theta: state.theta_wrapped,
+                    omega: state.omega,
+                    lead_s: self.settings.plan_budget_s,
+                },
+            };
+            self.request(request, self.settings.plan_budget_s);
+        }
+    }
+
+    fn emit_telemetry(&self, part: &Option<TaskState<f32>>, out: &mut Vec<Message, MAX_TICK_MESSAGES>) {
+        let period = u64::from(self.cell.config.telemetry_period_ticks);
+        if period == 0 || (self.ticks - 1) % period != 0 {
+            return;
+        }
+        let state = self.conveyor_state;
+        let tool_reference = self.reference.position - Vector3::new(0.0, 0.0, TOOL_LENGTH_M as f32);
+        let telemetry = PickTelemetry {
+            time_us: self.last_time_us,
+            phase: self.phase(),
+            fault: self.fault,
+            theta_rad: state.map_or(0.0, |s| s.theta_wrapped),
+            omega_rad_s: state.map_or(0.0, |s| s.omega),
+            sigma_theta_rad: state.map_or(0.0, |s| s.sigma_theta),
+            sigma_omega_rad_s: state.map_or(0.0, |s| s.sigma_omega),
+            part_base_m: part.map(|p| [p.position.x, p.position.y, p.position.z]),
+            part_yaw_base_rad: part.map_or(0.0, |p| p.yaw),
+            part_velocity_base_m_s: part.map_or([0.0; 3], |p| [p.velocity.x, p.velocity.y, p.velocity.z]),
+            part_sigma_m: self.estimate.map_or(0.0, |e| e.report.sigma_part_m),
+            tool_base_m: [self.tool_measured.x, self.tool_measured.y, self.tool_measured.z],
+            tool_reference_base_m: [tool_reference.x, tool_reference.y, tool_reference.z],
+            tool_yaw_rad: self.tool_yaw_measured,
+            tool_reference_yaw_rad: wrap_pi(self.reference.yaw),
+            frames_paired: self.counters.frames_paired,
+            frames_unpaired: self.counters.frames_unpaired,
+            saturated_ticks: self.counters.saturated_ticks,
+        };
+        // The outbox holds MAX_TICK_MESSAGES; telemetry is dropped, never the command.
+        let _ = out.push(Message::Telemetry(telemetry));
+    }
+
+    /// The latest calibration report and its serial number (one more per estimate).
+    pub fn calibration_report(&self) -> Option<(u32, crate::protocol::CalibrationReport)> {
+        self.estimate.map(|e| (self.estimate_serial, e.report))
+    }
+
+    /// The commanded twist's norm, for tests.
+    pub fn reference(&self) -> TaskState<f32> {
+        self.reference
+    }
+
+    #[doc(hidden)]
+    pub fn twist_norm(&self) -> f32 {
+        let twist: Vector6<f32> = self.reference.twist();
+        twist.norm()
+    }
+}

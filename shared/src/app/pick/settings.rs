@@ -1,0 +1,97 @@
+//! The pick's tuning: heights, speeds, dwell times, timeouts and fault limits.
+//!
+//! These are properties of the gripper and of how cautious the cell should be,
+//! not of where the camera, the disc or the robot stand (those are calibrated).
+
+/// Every tunable of the pick, with the defaults the simulator's experiments use.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PickSettings {
+    /// Radius from the base axis and grasp-point height of the sweep that shows
+    /// the marks to the camera before anything is known. The height is the
+    /// cell's travel height: above any disc and part the robot can reach.
+    pub search_radius_m: f32,
+    pub search_tool_height_m: f32,
+    /// The sweep turns the arm this far either side of its start azimuth.
+    pub search_half_sweep_rad: f32,
+    /// Sightings of the marks needed before the first estimate.
+    pub min_effector_sightings: u32,
+    /// Grasp-point heights above the part's top at which the marks are shown for
+    /// the robot-to-disc calibration, and how long each pose is held.
+    pub calibration_heights_m: [f32; 2],
+    pub calibration_dwell_s: f32,
+    /// Hover height above the grasp point while intercepting and tracking.
+    pub hover_height_m: f32,
+    /// How long tracking must hold the gripper within `track_tolerance_m`
+    /// before descending, and the most time it may take.
+    pub track_settle_s: f32,
+    pub track_tolerance_m: f32,
+    pub track_timeout_s: f32,
+    pub descend_s: f32,
+    pub grasp_settle_s: f32,
+    pub grasp_close_s: f32,
+    pub lift_height_m: f32,
+    pub lift_s: f32,
+    /// Height above the drop-off from which the part is lowered, and the release dwell.
+    pub drop_hover_m: f32,
+    pub release_s: f32,
+    /// The part must stay reachable this long after the intercept (track, descend, grasp, lift).
+    pub grasp_window_s: f32,
+    /// The conveyor counts as steady (stopped or turning evenly) below this |alpha|.
+    pub steady_alpha_rad_s2: f32,
+    /// Most time spent waiting for a steady conveyor and a feasible intercept.
+    pub locate_timeout_s: f32,
+    /// Simulated time allowed for a background estimate or plan before its
+    /// result is used (results are applied at this fixed delay, so a run is
+    /// deterministic whatever the processor's speed).
+    pub estimate_budget_s: f32,
+    pub plan_budget_s: f32,
+    /// A calibration is refused when its 1-sigma part or base position exceeds these.
+    pub max_part_sigma_m: f32,
+    pub max_base_sigma_m: f32,
+    /// Faults: no paired camera frame for this long while vision is needed; the
+    /// gripper this far from its reference.
+    pub vision_stale_s: f32,
+    pub tracking_error_limit_m: f32,
+    /// A controlled stop decelerates to rest over this time (rising `stop_rise_m`
+    /// when near the part), then holds.
+    pub stop_s: f32,
+    pub stop_rise_m: f32,
+    /// Extra time a motion phase may take beyond its planned duration.
+    pub motion_timeout_margin_s: f32,
+}
+
+impl Default for PickSettings {
+    fn default() -> Self {
+        Self {
+            search_radius_m: 0.65,
+            search_tool_height_m: 0.70,
+            search_half_sweep_rad: 2.6,
+            min_effector_sightings: 6,
+            calibration_heights_m: [0.10, 0.25],
+            calibration_dwell_s: 0.4,
+            hover_height_m: 0.06,
+            track_settle_s: 0.6,
+            track_tolerance_m: 0.003,
+            track_timeout_s: 3.0,
+            descend_s: 1.2,
+            grasp_settle_s: 0.3,
+            grasp_close_s: 0.3,
+            lift_height_m: 0.15,
+            lift_s: 1.2,
+            drop_hover_m: 0.10,
+            release_s: 0.4,
+            grasp_window_s: 3.5,
+            steady_alpha_rad_s2: 0.2,
+            locate_timeout_s: 40.0,
+            estimate_budget_s: 1.0,
+            plan_budget_s: 0.25,
+            max_part_sigma_m: 0.005,
+            max_base_sigma_m: 0.03,
+            vision_stale_s: 2.0,
+            tracking_error_limit_m: 0.03,
+            stop_s: 0.6,
+            stop_rise_m: 0.05,
+            motion_timeout_margin_s: 2.0,
+        }
+    }
+}
