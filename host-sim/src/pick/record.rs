@@ -110,3 +110,30 @@ pub struct PickRun {
     /// Lowest height of the grasp point above the disc surface while not grasping, m.
     pub min_tool_clearance_m: f64,
 }
+
+impl PickRun {
+    /// A run that produced nothing (the simulation itself failed).
+    pub fn empty(experiment: &str, seed: u64) -> Self {
+        Self {
+            experiment: experiment.to_string(),
+            seed,
+            layout: CellLayout {
+                disc_centre_base_m: [f64::NAN; 3],
+                disc_radius_m: f64::NAN,
+                camera_centre_base_m: [f64::NAN; 3],
+                drop_off_base_m: [f64::NAN; 3],
+            },
+            records: Vec::new(),
+            phases: Vec::new(),
+            calibrations: Vec::new(),
+            grasp: None,
+            result: PickResult::TimedOut(PickPhase::Idle),
+            placed_error_m: None,
+            calibrated_after_s: None,
+            duration_s: 0.0,
+            max_speed_ratio: f64::NAN,
+            max_torque_ratio: f64::NAN,
+            min_tool_clearance_m: f64::NAN,
+        }
+    }
+}

@@ -1,0 +1,134 @@
+//! `host-sim run` (and `host-sim` alone): the paper's experiments and the moving
+//! pick, end to end, with the results table on the terminal and plots plus CSV
+//! in an output folder.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Context, Result};
+use clap::Args;
+
+use super::record::PickRun;
+use super::report::{results_table, summary_line, write_run_outputs};
+use super::runner::run_pick;
+use super::scenario::{PickExperiment, PickScenarioFile};
+use crate::link::{ByteLink, FramedLink, InProcessLink, SerialPortLink, TcpLink};
+
+/// Options of the default run.
+#[derive(Args, Debug, Clone)]
+pub struct PickArgs {
+    /// Scenario file (TOML); the embedded default when absent (see --print-scenario).
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// Experiments to run (comma-separated names); all of the file's by default.
+    #[arg(long, value_delimiter = ',')]
+    pub experiment: Vec<String>,
+    /// Seed of the random workcell (camera, disc, part and robot base poses, noise).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Folder for the plots (PNG) and time series (CSV), one subfolder per experiment.
+    #[arg(long, default_value = "pick-out")]
+    pub out: PathBuf,
+    /// Skip the plots and CSV files.
+    #[arg(long)]
+    pub no_plots: bool,
+    /// The controller: `in-process` (default), `tcp:HOST:PORT` (the emulated
+    /// firmware's UART) or `serial:PATH[@BAUD]` (a board).
+    #[arg(long, default_value = "in-process")]
+    pub link: String,
+    /// Print the embedded default scenario file and exit.
+    #[arg(long)]
+    pub print_scenario: bool,
+}
+
+impl Default for PickArgs {
+    fn default() -> Self {
+        Self {
+            scenario: None,
+            experiment: Vec::new(),
+            seed: 1,
+            out: PathBuf::from("pick-out"),
+            no_plots: false,
+            link: "in-process".to_string(),
+            print_scenario: false,
+        }
+    }
+}
+
+fn run_on_link(experiment: &PickExperiment, seed: u64, link: &str) -> Result<PickRun> {
+    fn go<L: ByteLink>(experiment: &PickExperiment, seed: u64, link: L) -> Result<PickRun> {
+        let mut framed = FramedLink::new(link);
+        run_pick(experiment, seed, &mut framed)
+    }
+    if link == "in-process" {
+        go(experiment, seed, InProcessLink::new())
+    } else if let Some(addr) = link.strip_prefix("tcp:") {
+        go(experiment, seed, TcpLink::connect(addr, Duration::from_secs(5))?)
+    } else if let Some(spec) = link.strip_prefix("serial:") {
+        let (path, baud) = match spec.split_once('@') {
+            Some((path, baud)) => (path, baud.parse().context("serial baud rate")?),
+            None => (spec, 115_200),
+        };
+        go(experiment, seed, SerialPortLink::open(path, baud)?)
+    } else {
+        Err(anyhow!(
+            "unknown --link {link}: use in-process, tcp:HOST:PORT or serial:PATH[@BAUD]"
+        ))
+    }
+}
+
+/// The experiments the arguments select, in the file's order.
+fn selected(file: &PickScenarioFile, names: &[String]) -> Result<Vec<PickExperiment>> {
+    if names.is_empty() {
+        return Ok(file.experiments.clone());
+    }
+    names
+        .iter()
+        .map(|name| {
+            file.experiment(name).cloned().ok_or_else(|| {
+                let known: Vec<&str> = file.experiments.iter().map(|e| e.name.as_str()).collect();
+                anyhow!("no experiment named {name} (known: {})", known.join(", "))
+            })
+        })
+        .collect()
+}
+
+pub fn run_pick_command(args: &PickArgs) -> Result<()> {
+    if args.print_scenario {
+        print!("{}", PickScenarioFile::embedded_default()?.to_toml_string()?);
+        return Ok(());
+    }
+    let file = match &args.scenario {
+        Some(path) => PickScenarioFile::from_path(path)?,
+        None => PickScenarioFile::embedded_default()?,
+    };
+    let experiments = selected(&file, &args.experiment)?;
+    println!(
+        "Simulated workcell (seed {}): PUMA 560, 0.9 m disc, one 256x256 camera; camera, disc and robot base poses unknown to the controller.\n\
+         Controller: {} link; the world runs in lock step at the controller's rate.\n",
+        args.seed, args.link
+    );
+    let mut runs = Vec::new();
+    for experiment in &experiments {
+        let started = Instant::now();
+        let run = run_on_link(experiment, args.seed, &args.link)
+            .with_context(|| format!("experiment {}", experiment.name))?;
+        println!(
+            "{}  [{:.1} s simulated in {:.1} s]",
+            summary_line(&run),
+            run.duration_s,
+            started.elapsed().as_secs_f64()
+        );
+        if !args.no_plots {
+            let written = write_run_outputs(&run, &args.out)
+                .with_context(|| format!("writing outputs of {}", experiment.name))?;
+            if let Some(first) = written.first() {
+                let folder = first.parent().map_or(args.out.clone(), PathBuf::from);
+                println!("  plots and CSV: {} ({} files)", folder.display(), written.len());
+            }
+        }
+        runs.push(run);
+    }
+    println!("\n{}", results_table(&runs));
+    Ok(())
+}

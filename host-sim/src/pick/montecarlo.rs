@@ -1,0 +1,272 @@
+//! `host-sim montecarlo`: many seeded picks over random workcells, in parallel,
+//! with the success rate and the percentiles of the errors that matter for a
+//! grasp. Every trial's seed is in `trials.csv`, and
+//! `host-sim run --experiment NAME --seed SEED` replays it with plots.
+
+use std::fmt::Write as _;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use anyhow::{anyhow, Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::record::{PickResult, PickRun};
+use super::runner::run_pick_in_process;
+use super::scenario::{PickExperiment, PickScenarioFile};
+
+/// Options of `host-sim montecarlo`.
+#[derive(Args, Debug, Clone)]
+pub struct MonteCarloArgs {
+    /// Number of random workcells.
+    #[arg(long, default_value_t = 1000)]
+    pub trials: usize,
+    /// Base seed: trial k runs the world seeded with `seed * 1_000_000 + k`.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Which experiment of the scenario file to repeat.
+    #[arg(long, default_value = "turning")]
+    pub experiment: String,
+    /// Scenario file (TOML); the embedded default when absent.
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Folder for report.md, trials.csv and summary.json.
+    #[arg(long, default_value = "montecarlo-out")]
+    pub out: PathBuf,
+}
+
+/// One trial, flattened for the CSV and the statistics.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrialSummary {
+    pub trial: usize,
+    pub seed: u64,
+    pub result: String,
+    pub success: bool,
+    /// The controller's fused part estimate minus the truth at the grasp, mm and degrees.
+    pub estimate_error_x_mm: f64,
+    pub estimate_error_y_mm: f64,
+    pub estimate_error_z_mm: f64,
+    pub estimate_error_mm: f64,
+    pub estimate_yaw_error_deg: f64,
+    /// The gripper's grasp point minus the part's when it closed.
+    pub grasp_error_mm: f64,
+    pub grasp_yaw_error_deg: f64,
+    pub grasp_relative_speed_mm_s: f64,
+    pub calibrated_after_s: f64,
+    pub duration_s: f64,
+    pub max_speed_ratio: f64,
+    pub max_torque_ratio: f64,
+    pub min_tool_clearance_mm: f64,
+}
+
+fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
+    let nan = f64::NAN;
+    let grasp = run.grasp.as_ref();
+    let estimate = grasp.and_then(|g| g.estimate_error_m);
+    let [ex, ey, ez] = estimate.unwrap_or([nan; 3]);
+    let norm3 = |[x, y, z]: [f64; 3]| (x * x + y * y + z * z).sqrt();
+    TrialSummary {
+        trial,
+        seed,
+        result: super::report::result_name(&run.result),
+        success: run.result == PickResult::Success,
+        estimate_error_x_mm: ex * 1e3,
+        estimate_error_y_mm: ey * 1e3,
+        estimate_error_z_mm: ez * 1e3,
+        estimate_error_mm: estimate.map_or(nan, norm3) * 1e3,
+        estimate_yaw_error_deg: grasp
+            .and_then(|g| g.estimate_yaw_error_rad)
+            .map_or(nan, f64::to_degrees),
+        grasp_error_mm: grasp.map_or(nan, |g| norm3(g.position_error_m) * 1e3),
+        grasp_yaw_error_deg: grasp.map_or(nan, |g| g.yaw_error_rad.to_degrees()),
+        grasp_relative_speed_mm_s: grasp.map_or(nan, |g| g.relative_speed_m_s * 1e3),
+        calibrated_after_s: run.calibrated_after_s.unwrap_or(nan),
+        duration_s: run.duration_s,
+        max_speed_ratio: run.max_speed_ratio,
+        max_torque_ratio: run.max_torque_ratio,
+        min_tool_clearance_mm: run.min_tool_clearance_m * 1e3,
+    }
+}
+
+/// The trial's world seed.
+pub fn trial_seed(base: u64, trial: usize) -> u64 {
+    base.wrapping_mul(1_000_000).wrapping_add(trial as u64)
+}
+
+/// Runs `trials` picks of `experiment` in parallel (a failed simulation counts as
+/// a trial whose result names the error).
+pub fn run_trials(
+    experiment: &PickExperiment,
+    trials: usize,
+    base_seed: u64,
+    progress: &ProgressBar,
+) -> Vec<TrialSummary> {
+    let mut summaries: Vec<TrialSummary> = (0..trials)
+        .into_par_iter()
+        .map(|trial| {
+            let seed = trial_seed(base_seed, trial);
+            let summary = match run_pick_in_process(experiment, seed) {
+                Ok(run) => summarise(trial, seed, &run),
+                Err(error) => TrialSummary {
+                    result: format!("error: {error}"),
+                    ..summarise(trial, seed, &PickRun::empty(&experiment.name, seed))
+                },
+            };
+            progress.inc(1);
+            summary
+        })
+        .collect();
+    summaries.sort_by_key(|s| s.trial);
+    summaries
+}
+
+/// The `p`-th percentile (nearest rank) of the finite values; NaN when none.
+pub fn percentile(values: &[f64], p: f64) -> f64 {
+    let mut finite: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    if finite.is_empty() {
+        return f64::NAN;
+    }
+    finite.sort_by(f64::total_cmp);
+    let rank = ((p / 100.0) * finite.len() as f64).ceil() as usize;
+    finite[rank.clamp(1, finite.len()) - 1]
+}
+
+/// The markdown report of a Monte Carlo run.
+pub fn montecarlo_table(experiment: &str, summaries: &[TrialSummary]) -> String {
+    let n = summaries.len();
+    let successes = summaries.iter().filter(|s| s.success).count();
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "# Pick Monte Carlo: {experiment}, {n} random workcells\n\n\
+         Success: {successes} of {n} ({:.1} %).\n",
+        100.0 * successes as f64 / n.max(1) as f64
+    );
+    let mut outcomes: Vec<(String, usize)> = Vec::new();
+    for s in summaries {
+        match outcomes.iter_mut().find(|(name, _)| *name == s.result) {
+            Some((_, count)) => *count += 1,
+            None => outcomes.push((s.result.clone(), 1)),
+        }
+    }
+    outcomes.sort_by(|a, b| b.1.cmp(&a.1));
+    let _ = writeln!(out, "| outcome | trials |\n|---|---|");
+    for (name, count) in &outcomes {
+        let _ = writeln!(out, "| {name} | {count} |");
+    }
+    let _ = writeln!(
+        out,
+        "\n| quantity (at the grasp unless said) | median | 95th percentile | 99th percentile | max |\n|---|---|---|---|---|"
+    );
+    let rows: [(&str, fn(&TrialSummary) -> f64); 12] = [
+        ("part estimate error, 3-D (mm)", |s| s.estimate_error_mm),
+        ("part estimate error, |x| (mm)", |s| s.estimate_error_x_mm.abs()),
+        ("part estimate error, |y| (mm)", |s| s.estimate_error_y_mm.abs()),
+        ("part estimate error, |z| (mm)", |s| s.estimate_error_z_mm.abs()),
+        ("part estimate yaw error (deg)", |s| s.estimate_yaw_error_deg),
+        ("gripper to part, 3-D (mm)", |s| s.grasp_error_mm),
+        ("gripper to part yaw (deg)", |s| s.grasp_yaw_error_deg),
+        ("gripper to part speed (mm/s)", |s| s.grasp_relative_speed_mm_s),
+        ("time to a calibrated cell (s)", |s| s.calibrated_after_s),
+        ("time to done (s)", |s| s.duration_s),
+        ("joint speed / limit, worst", |s| s.max_speed_ratio),
+        ("commanded torque / limit, worst", |s| s.max_torque_ratio),
+    ];
+    for (name, value) in rows {
+        let values: Vec<f64> = summaries.iter().map(value).collect();
+        let _ = writeln!(
+            out,
+            "| {name} | {:.3} | {:.3} | {:.3} | {:.3} |",
+            percentile(&values, 50.0),
+            percentile(&values, 95.0),
+            percentile(&values, 99.0),
+            percentile(&values, 100.0)
+        );
+    }
+    let clearance: Vec<f64> = summaries.iter().map(|s| s.min_tool_clearance_mm).collect();
+    let lowest = clearance
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(f64::INFINITY, f64::min);
+    let _ = writeln!(
+        out,
+        "\nLowest grasp-point height above the disc surface while not holding the part: {lowest:.1} mm (the grasp point descends to the part's top, 40 or 70 mm)."
+    );
+    out
+}
+
+fn write_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
+    let mut text = String::from(
+        "trial,seed,result,success,estimate_error_x_mm,estimate_error_y_mm,estimate_error_z_mm,estimate_error_mm,estimate_yaw_error_deg,grasp_error_mm,grasp_yaw_error_deg,grasp_relative_speed_mm_s,calibrated_after_s,duration_s,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm\n",
+    );
+    for s in summaries {
+        let _ = writeln!(
+            text,
+            "{},{},\"{}\",{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.4},{:.4},{:.2}",
+            s.trial,
+            s.seed,
+            s.result.replace('"', "'"),
+            s.success,
+            s.estimate_error_x_mm,
+            s.estimate_error_y_mm,
+            s.estimate_error_z_mm,
+            s.estimate_error_mm,
+            s.estimate_yaw_error_deg,
+            s.grasp_error_mm,
+            s.grasp_yaw_error_deg,
+            s.grasp_relative_speed_mm_s,
+            s.calibrated_after_s,
+            s.duration_s,
+            s.max_speed_ratio,
+            s.max_torque_ratio,
+            s.min_tool_clearance_mm
+        );
+    }
+    fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
+
+pub fn run_montecarlo(args: &MonteCarloArgs) -> Result<()> {
+    let file = match &args.scenario {
+        Some(path) => PickScenarioFile::from_path(path)?,
+        None => PickScenarioFile::embedded_default()?,
+    };
+    let experiment = file
+        .experiment(&args.experiment)
+        .ok_or_else(|| anyhow!("no experiment named {} in the scenario file", args.experiment))?
+        .clone();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build()
+        .context("thread pool")?;
+    let progress = ProgressBar::new(args.trials as u64);
+    progress.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} picks, {elapsed} elapsed, eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let started = std::time::Instant::now();
+    let summaries = pool.install(|| run_trials(&experiment, args.trials, args.seed, &progress));
+    progress.finish_and_clear();
+    let elapsed = started.elapsed().as_secs_f64();
+    let mut report = montecarlo_table(&experiment.name, &summaries);
+    let _ = writeln!(
+        report,
+        "\n{} picks in {elapsed:.1} s on {} threads (seed {}); every trial's seed is in trials.csv.",
+        summaries.len(),
+        pool.current_num_threads(),
+        args.seed
+    );
+    fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    fs::write(args.out.join("report.md"), &report).context("writing report.md")?;
+    write_csv(&args.out.join("trials.csv"), &summaries)?;
+    let json = serde_json::to_string_pretty(&summaries).context("summary.json")?;
+    fs::write(args.out.join("summary.json"), json).context("writing summary.json")?;
+    println!("{report}");
+    println!("(written to {})", args.out.display());
+    Ok(())
+}

@@ -1,0 +1,255 @@
+//! One pick: the simulated world against the controller over the serial
+//! protocol, in lock step (the plant advances one control period per exchanged
+//! sensor sample and actuator command), so the run is deterministic and does not
+//! depend on how fast the controller's link answers.
+//!
+//! Per period: camera frames that have arrived are sent, then the sensor
+//! sample; the controller answers with the actuator command (and, at its own
+//! bounded rate, telemetry and calibration reports); the world applies the
+//! command for one period.
+
+use std::time::Duration;
+
+use anyhow::{anyhow, bail, Context, Result};
+use shared::protocol::{
+    ControllerMode, FaultCause, Message, MessageKind, PickPhase, PickTelemetry, PROTOCOL_VERSION,
+};
+
+use super::record::{
+    CalibrationRecord, GraspRecord, PhaseEvent, PickResult, PickRun, TickRecord,
+};
+use super::scenario::PickExperiment;
+use super::world::{World, WorldTruth};
+use crate::link::{ByteLink, FramedLink};
+use crate::workcell::geometry::angle_distance;
+
+/// How long to wait for one reply (a real board or an emulator may be slow).
+const REPLY_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// Seconds the run goes on after the controller reports Done or Faulted, to
+/// see the arm come to rest and stay there.
+const SETTLE_AFTER_END_S: f64 = 0.5;
+
+/// Opens the session and sends the cell configuration.
+fn open_session<L: ByteLink>(link: &mut FramedLink<L>, world: &World) -> Result<()> {
+    let mut peer_name = heapless::String::new();
+    let _ = peer_name.push_str("host-sim pick");
+    link.send(&Message::Hello {
+        protocol_version: PROTOCOL_VERSION,
+        peer_name,
+    })?;
+    loop {
+        match link.recv(REPLY_TIMEOUT, "HelloAck")? {
+            Message::HelloAck { .. } => break,
+            // Reports of frames refused before this session (stale bytes on a board's UART).
+            Message::ErrorReport { .. } => continue,
+            other => bail!("expected HelloAck, got {other:?}"),
+        }
+    }
+    link.send(&Message::Configure(world.cell_config()))?;
+    match link.recv(REPLY_TIMEOUT, "Ack of the cell configuration")? {
+        Message::Ack {
+            kind: MessageKind::Configure,
+            ..
+        } => Ok(()),
+        other => bail!("the controller refused the cell configuration: {other:?}"),
+    }
+}
+
+fn vector_sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn to_f64(v: [f32; 3]) -> [f64; 3] {
+    v.map(f64::from)
+}
+
+/// The record of one telemetry message against the truth at the same instant.
+fn tick_record(telemetry: &PickTelemetry, truth: &WorldTruth) -> TickRecord {
+    TickRecord {
+        t_s: truth.time_s,
+        phase: telemetry.phase,
+        part_true_base_m: truth.part_base_m,
+        part_true_yaw_rad: truth.part_yaw_rad,
+        part_est_base_m: telemetry.part_base_m.map(to_f64),
+        part_est_yaw_rad: telemetry
+            .part_base_m
+            .map(|_| f64::from(telemetry.part_yaw_base_rad)),
+        part_sigma_m: f64::from(telemetry.part_sigma_m),
+        tool_true_base_m: truth.tool_base_m,
+        tool_true_yaw_rad: truth.tool_yaw_rad,
+        tool_ref_base_m: to_f64(telemetry.tool_reference_base_m),
+        tool_ref_yaw_rad: f64::from(telemetry.tool_reference_yaw_rad),
+        theta_true_rad: truth.theta_rad,
+        theta_est_wrapped_rad: f64::from(telemetry.theta_rad),
+        omega_true_rad_s: truth.omega_rad_s,
+        omega_est_rad_s: f64::from(telemetry.omega_rad_s),
+        q_rad: truth.q_rad,
+        qd_rad_s: truth.qd_rad_s,
+        tau_nm: truth.tau_nm,
+    }
+}
+
+/// Runs one pick of `experiment` (world seeded with `seed`) against the
+/// controller behind `link`.
+pub fn run_pick<L: ByteLink>(
+    experiment: &PickExperiment,
+    seed: u64,
+    link: &mut FramedLink<L>,
+) -> Result<PickRun> {
+    let mut world = World::new(experiment, seed)
+        .with_context(|| format!("building the world of {} (seed {seed})", experiment.name))?;
+    open_session(link, &world)?;
+    let model = world.plant().model().clone();
+    let limits = model.joint_limits().clone();
+
+    let mut records = Vec::new();
+    let mut phases: Vec<PhaseEvent> = Vec::new();
+    let mut calibrations = Vec::new();
+    let mut grasp = None;
+    let mut last_phase = None;
+    let mut last_fault: Option<FaultCause> = None;
+    let mut ended_at: Option<f64> = None;
+    let mut max_speed_ratio: f64 = 0.0;
+    let mut max_torque_ratio: f64 = 0.0;
+    let mut min_clearance = f64::INFINITY;
+    let disc_top = world.layout().disc_centre_base_m[2];
+    let mut latest_estimate: Option<([f64; 3], f64)> = None;
+
+    loop {
+        let now = world.time_s();
+        if now > experiment.time_limit_s {
+            break;
+        }
+        if ended_at.is_some_and(|t| now - t > SETTLE_AFTER_END_S) {
+            break;
+        }
+        for frame in world.due_camera_frames() {
+            link.send(&Message::CameraFeatures(frame))?;
+        }
+        let sample = world.sensor_sample();
+        link.send(&Message::SensorSample(sample))?;
+        let truth = world.truth();
+        let command = loop {
+            match link.recv(REPLY_TIMEOUT, "ActuatorCommand")? {
+                Message::ActuatorCommand(command) if command.seq == sample.seq => break command,
+                Message::Telemetry(telemetry) => {
+                    if last_phase != Some(telemetry.phase) {
+                        last_phase = Some(telemetry.phase);
+                        phases.push(PhaseEvent {
+                            t_s: truth.time_s,
+                            phase: telemetry.phase,
+                        });
+                    }
+                    if telemetry.fault.is_some() {
+                        last_fault = telemetry.fault;
+                    }
+                    if matches!(telemetry.phase, PickPhase::Done | PickPhase::Faulted) && ended_at.is_none() {
+                        ended_at = Some(truth.time_s);
+                    }
+                    latest_estimate = telemetry
+                        .part_base_m
+                        .map(|p| (to_f64(p), f64::from(telemetry.part_yaw_base_rad)));
+                    records.push(tick_record(&telemetry, &truth));
+                }
+                Message::CalibrationReport(report) => {
+                    let workcell = world.workcell();
+                    calibrations.push(CalibrationRecord {
+                        t_s: truth.time_s,
+                        report,
+                        true_camera_height_m: workcell.camera.height_m(),
+                        true_base_yaw_rad: workcell.base_from_disc_yaw_rad,
+                        true_base_translation_m: [
+                            workcell.base_from_disc_translation_m.x,
+                            workcell.base_from_disc_translation_m.y,
+                            workcell.base_from_disc_translation_m.z,
+                        ],
+                    });
+                }
+                Message::Ack { .. } => {}
+                Message::ErrorReport { code, detail } => {
+                    bail!("the controller reported {code:?} ({detail}) at t = {now:.3} s")
+                }
+                Message::Status(status) if status.mode == ControllerMode::Faulted => {
+                    bail!("the controller faulted its link")
+                }
+                other => bail!("unexpected reply {other:?} at t = {now:.3} s"),
+            }
+        };
+        let had_grasp = world.grasp().is_some();
+        world
+            .apply(&command)
+            .with_context(|| format!("world step at t = {now:.3} s"))?;
+        if let (false, Some(attempt)) = (had_grasp, world.grasp()) {
+            let estimate = latest_estimate;
+            grasp = Some(GraspRecord {
+                t_s: attempt.t_s,
+                succeeded: attempt.succeeded,
+                position_error_m: attempt.position_error_base_m,
+                yaw_error_rad: attempt.yaw_error_rad,
+                relative_speed_m_s: attempt.relative_speed_m_s,
+                estimate_error_m: estimate.map(|(p, _)| vector_sub(p, truth.part_base_m)),
+                estimate_yaw_error_rad: estimate.map(|(_, yaw)| {
+                    angle_distance(yaw, truth.part_yaw_rad).min(angle_distance(
+                        yaw + std::f64::consts::PI,
+                        truth.part_yaw_rad,
+                    ))
+                }),
+            });
+        }
+        let state = world.truth();
+        for j in 0..6 {
+            max_speed_ratio = max_speed_ratio.max(state.qd_rad_s[j].abs() / limits.velocity_max[j]);
+            let commanded = f64::from(command.joint_torque_nm[j]).abs();
+            max_torque_ratio = max_torque_ratio.max(commanded / limits.torque_max[j]);
+        }
+        if !state.part_held {
+            min_clearance = min_clearance.min(state.tool_base_m[2] - disc_top);
+        }
+    }
+
+    let duration_s = world.time_s();
+    let placed = world.placed_position_base();
+    let placed_error_m = placed.map(|p| {
+        let d = vector_sub(p, world.drop_off_base());
+        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+    });
+    let final_phase = last_phase.unwrap_or(PickPhase::Idle);
+    let result = match (final_phase, grasp.as_ref()) {
+        (PickPhase::Done, Some(g)) if g.succeeded && placed.is_some() => PickResult::Success,
+        (_, Some(g)) if !g.succeeded => PickResult::GraspMissed,
+        (PickPhase::Faulted, _) => PickResult::Fault(last_fault.unwrap_or(FaultCause::Timeout)),
+        (phase, _) => PickResult::TimedOut(phase),
+    };
+    // The cell is calibrated when the controller starts to locate the part.
+    let calibrated_after_s = phases
+        .iter()
+        .find(|event| event.phase == PickPhase::Locate)
+        .map(|event| event.t_s);
+    Ok(PickRun {
+        experiment: experiment.name.clone(),
+        seed,
+        layout: world.layout(),
+        records,
+        phases,
+        calibrations,
+        grasp,
+        result,
+        placed_error_m,
+        calibrated_after_s,
+        duration_s,
+        max_speed_ratio,
+        max_torque_ratio,
+        min_tool_clearance_m: if min_clearance.is_finite() {
+            min_clearance
+        } else {
+            f64::NAN
+        },
+    })
+}
+
+/// A pick against the controller linked into this process.
+pub fn run_pick_in_process(experiment: &PickExperiment, seed: u64) -> Result<PickRun> {
+    let mut link = FramedLink::new(crate::link::InProcessLink::new());
+    run_pick(experiment, seed, &mut link).map_err(|e| anyhow!("{e:#}"))
+}
