@@ -1,6 +1,6 @@
-//! The default run of `host-sim` (`cargo run --release -p host-sim`): one
-//! simulated workcell on embedded defaults, end to end as far as the controller
-//! goes today.
+//! `host-sim calibration-demo`: self-calibration alone on one simulated
+//! workcell, against the paper's figures and the paper's own method (the full
+//! pick is `host-sim run`, the default).
 //!
 //! 1. Opens a protocol session with the controller application in process (the
 //!    same `shared::app` code the firmware runs) and reads its status.
@@ -103,7 +103,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
     }
     print_table(&refined_errors, paper_errors.as_ref());
     println!(
-        "\nThe full pick (fusion, interception and computed-torque tracking of the moving part) is the next milestone;\n\
+        "\nThe full pick (fusion, interception and computed-torque tracking of the moving part) is `host-sim run`;\n\
          see README for `host-sim accuracy`, `record`, `calibrate` and `link-check`."
     );
     Ok(())

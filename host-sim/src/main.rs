@@ -1,6 +1,7 @@
 //! `host-sim`: the simulated workcell and the tools around the controller.
 //!
-//! Without a subcommand it runs the default workcell (see [`host_sim::demo`]).
+//! Without a subcommand it runs the paper's experiments and the moving pick on
+//! the embedded default scenario (see [`host_sim::pick::command`]).
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
@@ -8,6 +9,8 @@ use host_sim::accuracy::command::{run_accuracy, AccuracyArgs};
 use host_sim::calibrate_cmd::{run_calibrate, CalibrateArgs};
 use host_sim::demo::{run_demo, DemoArgs};
 use host_sim::link;
+use host_sim::pick::command::{run_pick_command, PickArgs};
+use host_sim::pick::montecarlo::{run_montecarlo, MonteCarloArgs};
 use host_sim::workcell::command::{run_record, RecordArgs};
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
@@ -20,8 +23,13 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// The default workcell run (also what `host-sim` without a subcommand does).
-    Run(DemoArgs),
+    /// The paper's experiments and the moving pick, end to end (also what `host-sim`
+    /// without a subcommand does): results table, plots and CSV.
+    Run(PickArgs),
+    /// Seeded Monte Carlo of the pick over random workcells: success rate and error percentiles.
+    Montecarlo(MonteCarloArgs),
+    /// Self-calibration alone on one recorded workcell, against the paper's figures.
+    CalibrationDemo(DemoArgs),
     /// Record a synthetic observation log (and LOG.truth.json) from a random workcell.
     Record(RecordArgs),
     /// Calibrate from a log: result JSON on stdout, summary (and errors with --truth) on stderr.
@@ -35,8 +43,10 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let outcome = match &cli.command {
-        None => run_demo(&DemoArgs::default()),
-        Some(Command::Run(args)) => run_demo(args),
+        None => run_pick_command(&PickArgs::default()),
+        Some(Command::Run(args)) => run_pick_command(args),
+        Some(Command::Montecarlo(args)) => run_montecarlo(args),
+        Some(Command::CalibrationDemo(args)) => run_demo(args),
         Some(Command::Record(args)) => run_record(args),
         Some(Command::Calibrate(args)) => run_calibrate(args),
         Some(Command::Accuracy(args)) => run_accuracy(args),

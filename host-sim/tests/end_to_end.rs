@@ -270,11 +270,11 @@ fn calibrate_and_the_default_run_warn_about_a_camera_above_the_disc_axis() {
     let slanted = calibrate_stderr("paper", "1");
     assert!(!slanted.contains("warning:"), "{slanted}");
 
-    let demo = host_sim(&["run", "--scenario", "near-axis", "--seed", "1"]);
+    let demo = host_sim(&["calibration-demo", "--scenario", "near-axis", "--seed", "1"]);
     let stderr = String::from_utf8_lossy(&demo.stderr);
     assert!(demo.status.success(), "{stderr}");
     assert!(stderr.contains(NEAR_AXIS_WARNING), "{stderr}");
-    let default = host_sim(&[]);
+    let default = host_sim(&["calibration-demo"]);
     let stderr = String::from_utf8_lossy(&default.stderr);
     assert!(default.status.success(), "{stderr}");
     assert!(!stderr.contains("warning:"), "{stderr}");

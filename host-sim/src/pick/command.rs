@@ -63,7 +63,11 @@ fn run_on_link(experiment: &PickExperiment, seed: u64, link: &str) -> Result<Pic
     if link == "in-process" {
         go(experiment, seed, InProcessLink::new())
     } else if let Some(addr) = link.strip_prefix("tcp:") {
-        go(experiment, seed, TcpLink::connect(addr, Duration::from_secs(5))?)
+        go(
+            experiment,
+            seed,
+            TcpLink::connect(addr, Duration::from_secs(5))?,
+        )
     } else if let Some(spec) = link.strip_prefix("serial:") {
         let (path, baud) = match spec.split_once('@') {
             Some((path, baud)) => (path, baud.parse().context("serial baud rate")?),
@@ -80,22 +84,20 @@ fn run_on_link(experiment: &PickExperiment, seed: u64, link: &str) -> Result<Pic
 /// The experiments the arguments select, in the file's order.
 fn selected(file: &PickScenarioFile, names: &[String]) -> Result<Vec<PickExperiment>> {
     if names.is_empty() {
-        return Ok(file.experiments.clone());
+        return Ok(file.experiment.clone());
     }
     names
         .iter()
-        .map(|name| {
-            file.experiment(name).cloned().ok_or_else(|| {
-                let known: Vec<&str> = file.experiments.iter().map(|e| e.name.as_str()).collect();
-                anyhow!("no experiment named {name} (known: {})", known.join(", "))
-            })
-        })
+        .map(|name| file.experiment(name).cloned())
         .collect()
 }
 
 pub fn run_pick_command(args: &PickArgs) -> Result<()> {
     if args.print_scenario {
-        print!("{}", PickScenarioFile::embedded_default()?.to_toml_string()?);
+        print!(
+            "{}",
+            PickScenarioFile::embedded_default()?.to_toml_string()?
+        );
         return Ok(());
     }
     let file = match &args.scenario {
@@ -124,7 +126,11 @@ pub fn run_pick_command(args: &PickArgs) -> Result<()> {
                 .with_context(|| format!("writing outputs of {}", experiment.name))?;
             if let Some(first) = written.first() {
                 let folder = first.parent().map_or(args.out.clone(), PathBuf::from);
-                println!("  plots and CSV: {} ({} files)", folder.display(), written.len());
+                println!(
+                    "  plots and CSV: {} ({} files)",
+                    folder.display(),
+                    written.len()
+                );
             }
         }
         runs.push(run);

@@ -7,7 +7,7 @@ use std::fmt::Write as _;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use anyhow::{anyhow, Context, Result};
+use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
@@ -136,6 +136,9 @@ pub fn percentile(values: &[f64], p: f64) -> f64 {
     finite[rank.clamp(1, finite.len()) - 1]
 }
 
+/// One column of the statistics table.
+type Metric = fn(&TrialSummary) -> f64;
+
 /// The markdown report of a Monte Carlo run.
 pub fn montecarlo_table(experiment: &str, summaries: &[TrialSummary]) -> String {
     let n = summaries.len();
@@ -154,7 +157,7 @@ pub fn montecarlo_table(experiment: &str, summaries: &[TrialSummary]) -> String 
             None => outcomes.push((s.result.clone(), 1)),
         }
     }
-    outcomes.sort_by(|a, b| b.1.cmp(&a.1));
+    outcomes.sort_by_key(|(_, count)| std::cmp::Reverse(*count));
     let _ = writeln!(out, "| outcome | trials |\n|---|---|");
     for (name, count) in &outcomes {
         let _ = writeln!(out, "| {name} | {count} |");
@@ -163,15 +166,25 @@ pub fn montecarlo_table(experiment: &str, summaries: &[TrialSummary]) -> String 
         out,
         "\n| quantity (at the grasp unless said) | median | 95th percentile | 99th percentile | max |\n|---|---|---|---|---|"
     );
-    let rows: [(&str, fn(&TrialSummary) -> f64); 12] = [
+    let rows: [(&str, Metric); 12] = [
         ("part estimate error, 3-D (mm)", |s| s.estimate_error_mm),
-        ("part estimate error, |x| (mm)", |s| s.estimate_error_x_mm.abs()),
-        ("part estimate error, |y| (mm)", |s| s.estimate_error_y_mm.abs()),
-        ("part estimate error, |z| (mm)", |s| s.estimate_error_z_mm.abs()),
-        ("part estimate yaw error (deg)", |s| s.estimate_yaw_error_deg),
+        ("part estimate error, |x| (mm)", |s| {
+            s.estimate_error_x_mm.abs()
+        }),
+        ("part estimate error, |y| (mm)", |s| {
+            s.estimate_error_y_mm.abs()
+        }),
+        ("part estimate error, |z| (mm)", |s| {
+            s.estimate_error_z_mm.abs()
+        }),
+        ("part estimate yaw error (deg)", |s| {
+            s.estimate_yaw_error_deg
+        }),
         ("gripper to part, 3-D (mm)", |s| s.grasp_error_mm),
         ("gripper to part yaw (deg)", |s| s.grasp_yaw_error_deg),
-        ("gripper to part speed (mm/s)", |s| s.grasp_relative_speed_mm_s),
+        ("gripper to part speed (mm/s)", |s| {
+            s.grasp_relative_speed_mm_s
+        }),
         ("time to a calibrated cell (s)", |s| s.calibrated_after_s),
         ("time to done (s)", |s| s.duration_s),
         ("joint speed / limit, worst", |s| s.max_speed_ratio),
@@ -236,10 +249,7 @@ pub fn run_montecarlo(args: &MonteCarloArgs) -> Result<()> {
         Some(path) => PickScenarioFile::from_path(path)?,
         None => PickScenarioFile::embedded_default()?,
     };
-    let experiment = file
-        .experiment(&args.experiment)
-        .ok_or_else(|| anyhow!("no experiment named {} in the scenario file", args.experiment))?
-        .clone();
+    let experiment = file.experiment(&args.experiment)?.clone();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads.unwrap_or(0))
         .build()

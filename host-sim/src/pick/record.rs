@@ -107,7 +107,8 @@ pub struct PickRun {
     /// Worst ratios over the run of |joint speed| and |commanded torque| to their limits.
     pub max_speed_ratio: f64,
     pub max_torque_ratio: f64,
-    /// Lowest height of the grasp point above the disc surface while not grasping, m.
+    /// Lowest height of the grasp point above the disc surface while over the
+    /// disc (within 5 cm of its rim) and not holding the part, m.
     pub min_tool_clearance_m: f64,
 }
 

@@ -15,9 +15,7 @@ use shared::protocol::{
     ControllerMode, FaultCause, Message, MessageKind, PickPhase, PickTelemetry, PROTOCOL_VERSION,
 };
 
-use super::record::{
-    CalibrationRecord, GraspRecord, PhaseEvent, PickResult, PickRun, TickRecord,
-};
+use super::record::{CalibrationRecord, GraspRecord, PhaseEvent, PickResult, PickRun, TickRecord};
 use super::scenario::PickExperiment;
 use super::world::{World, WorldTruth};
 use crate::link::{ByteLink, FramedLink};
@@ -100,8 +98,8 @@ pub fn run_pick<L: ByteLink>(
     let mut world = World::new(experiment, seed)
         .with_context(|| format!("building the world of {} (seed {seed})", experiment.name))?;
     open_session(link, &world)?;
-    let model = world.plant().model().clone();
-    let limits = model.joint_limits().clone();
+    let model = *world.plant().model();
+    let limits = *model.joint_limits();
 
     let mut records = Vec::new();
     let mut phases: Vec<PhaseEvent> = Vec::new();
@@ -113,7 +111,9 @@ pub fn run_pick<L: ByteLink>(
     let mut max_speed_ratio: f64 = 0.0;
     let mut max_torque_ratio: f64 = 0.0;
     let mut min_clearance = f64::INFINITY;
-    let disc_top = world.layout().disc_centre_base_m[2];
+    let disc_centre = world.layout().disc_centre_base_m;
+    let disc_top = disc_centre[2];
+    let disc_radius = world.layout().disc_radius_m;
     let mut latest_estimate: Option<([f64; 3], f64)> = None;
 
     loop {
@@ -144,7 +144,9 @@ pub fn run_pick<L: ByteLink>(
                     if telemetry.fault.is_some() {
                         last_fault = telemetry.fault;
                     }
-                    if matches!(telemetry.phase, PickPhase::Done | PickPhase::Faulted) && ended_at.is_none() {
+                    if matches!(telemetry.phase, PickPhase::Done | PickPhase::Faulted)
+                        && ended_at.is_none()
+                    {
                         ended_at = Some(truth.time_s);
                     }
                     latest_estimate = telemetry
@@ -203,7 +205,10 @@ pub fn run_pick<L: ByteLink>(
             let commanded = f64::from(command.joint_torque_nm[j]).abs();
             max_torque_ratio = max_torque_ratio.max(commanded / limits.torque_max[j]);
         }
-        if !state.part_held {
+        let over_disc = (state.tool_base_m[0] - disc_centre[0])
+            .hypot(state.tool_base_m[1] - disc_centre[1])
+            <= disc_radius + 0.05;
+        if !state.part_held && over_disc {
             min_clearance = min_clearance.min(state.tool_base_m[2] - disc_top);
         }
     }

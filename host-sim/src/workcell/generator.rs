@@ -16,7 +16,8 @@
 //! - robot base: disc centre 0.6 to 1.0 m from the base's Z axis (the PUMA 560's
 //!   reach from the shoulder is about 0.86 m, so the near half of the disc is
 //!   reachable), the disc surface 0 to 0.5 m below the shoulder axis
-//!   (z = 0.67183 m in the base frame), any yaw.
+//!   (z = 0.67183 m in the base frame), any yaw and direction (the scenario's
+//!   `disc_placement` may narrow these, e.g. for a cell laid out for picking).
 //!
 //! Why the camera is tilted at least 10 degrees. The paper's setting is a camera
 //! beside the disc (assumption A4: the whole workcell, robot included, is in view;
@@ -65,8 +66,6 @@ pub const PART_CENTRE_RADIUS_RANGE_M: (f64, f64) = (0.10, 0.30);
 pub const FEATURE_RADIUS_RANGE_M: (f64, f64) = (0.03, 0.06);
 /// PUMA 560 shoulder height in the base frame: d1 of `puma560-model.md`.
 pub const SHOULDER_HEIGHT_M: f64 = 0.67183;
-pub const DISC_DISTANCE_FROM_BASE_AXIS_RANGE_M: (f64, f64) = (0.6, 1.0);
-pub const DISC_BELOW_SHOULDER_RANGE_M: (f64, f64) = (0.0, 0.5);
 
 const MAX_WORKCELL_ATTEMPTS: usize = 100;
 
@@ -246,9 +245,11 @@ pub fn random_workcell(
         let reference_radius_m = uniform(rng, REFERENCE_RADIUS_RANGE_M);
         let features_rotating = random_part(rng, scenario);
         let base_yaw = uniform(rng, (-PI, PI));
-        let distance = uniform(rng, DISC_DISTANCE_FROM_BASE_AXIS_RANGE_M);
-        let direction = uniform(rng, (0.0, TAU));
-        let below_shoulder = uniform(rng, DISC_BELOW_SHOULDER_RANGE_M);
+        let placement = &scenario.disc_placement;
+        let distance = uniform(rng, placement.distance_from_base_axis_m);
+        let (low_deg, high_deg) = placement.azimuth_deg;
+        let direction = uniform(rng, (low_deg.to_radians(), high_deg.to_radians()));
+        let below_shoulder = uniform(rng, placement.below_shoulder_m);
         let workcell = Workcell {
             camera,
             reference_radius_m,

@@ -50,6 +50,32 @@ pub struct Scenario {
     /// feature heights are poorly observable (see `generator`).
     #[serde(default = "paper_camera_tilt_deg")]
     pub camera_tilt_deg: (f64, f64),
+    /// Where the disc may stand relative to the robot.
+    #[serde(default)]
+    pub disc_placement: DiscPlacement,
+}
+
+/// Ranges the disc's placement relative to the robot is drawn from (uniformly).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DiscPlacement {
+    /// Distance of the disc centre from the robot's base Z axis, m.
+    pub distance_from_base_axis_m: (f64, f64),
+    /// Depth of the disc surface below the PUMA's shoulder axis (z = 0.67183 m), m.
+    pub below_shoulder_m: (f64, f64),
+    /// Direction of the disc centre about the base Z axis from +X, degrees.
+    pub azimuth_deg: (f64, f64),
+}
+
+impl Default for DiscPlacement {
+    /// The self-calibration scenarios' ranges: any direction, 0.6 to 1.0 m away,
+    /// the surface 0 to 0.5 m below the shoulder (the near half of the disc in reach).
+    fn default() -> Self {
+        Self {
+            distance_from_base_axis_m: (0.6, 1.0),
+            below_shoulder_m: (0.0, 0.5),
+            azimuth_deg: (-180.0, 180.0),
+        }
+    }
 }
 
 /// Camera tilt range of every scenario but `near-axis`, degrees: the issue's
@@ -116,6 +142,7 @@ impl Scenario {
                 max_m: 0.10,
             },
             camera_tilt_deg: PAPER_CAMERA_TILT_DEG,
+            disc_placement: DiscPlacement::default(),
         }
     }
 

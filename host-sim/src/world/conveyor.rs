@@ -1,6 +1,12 @@
 //! The disc conveyor as the world has it: a set speed with optional sinusoidal
 //! ripple, integrated exactly, read through a quadrature encoder whose hardware
 //! counter wraps at 16 or 32 bits and starts at an arbitrary value.
+//!
+//! The disc may be stopped (the paper's Section 5: the conveyor turned the part
+//! into the robot's workspace and stopped, then the part's pose was computed):
+//! from the stop instant it decelerates at a constant rate to rest and stays
+//! there. `theta`, `omega` and `alpha` are the exact integral and derivatives of
+//! one piecewise profile, so the encoder (read from `theta`) agrees with them.
 
 use anyhow::{bail, Result};
 use shared::fusion::CounterWidth;
@@ -16,6 +22,13 @@ pub struct ConveyorProfile {
     pub ripple_hz: f64,
 }
 
+/// A stop: from `start_s` the disc decelerates at `deceleration_rad_s2` to rest.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ConveyorStop {
+    pub start_s: f64,
+    pub deceleration_rad_s2: f64,
+}
+
 /// The disc and its encoder.
 #[derive(Debug, Clone)]
 pub struct Conveyor {
@@ -24,6 +37,7 @@ pub struct Conveyor {
     width: CounterWidth,
     start_raw: u32,
     theta0: f64,
+    stop: Option<ConveyorStop>,
 }
 
 impl Conveyor {
@@ -54,11 +68,94 @@ impl Conveyor {
             width,
             start_raw,
             theta0: 0.0,
+            stop: None,
+        })
+    }
+
+    /// The same conveyor, stopped as `stop` says (replaces any earlier stop).
+    pub fn with_stop(mut self, stop: ConveyorStop) -> Result<Self> {
+        if !(stop.start_s.is_finite() && stop.start_s >= 0.0) {
+            bail!(
+                "conveyor stop instant must be finite and >= 0 s, got {}",
+                stop.start_s
+            );
+        }
+        if !(stop.deceleration_rad_s2.is_finite() && stop.deceleration_rad_s2 > 0.0) {
+            bail!(
+                "conveyor deceleration must be finite and positive, got {} rad/s^2",
+                stop.deceleration_rad_s2
+            );
+        }
+        self.stop = Some(stop);
+        Ok(self)
+    }
+
+    pub fn stop(&self) -> Option<ConveyorStop> {
+        self.stop
+    }
+
+    /// Where the disc comes to rest if it starts stopping at `start_s` with
+    /// `deceleration_rad_s2`: the angle then plus `omega^2 / (2 a)` in the
+    /// direction it turns. (Ignores any stop already set.)
+    pub fn rest_angle_if_stopped_at(&self, start_s: f64, deceleration_rad_s2: f64) -> f64 {
+        let omega = self.running_omega(start_s);
+        self.running_theta(start_s) + omega.signum() * omega * omega / (2.0 * deceleration_rad_s2)
+    }
+
+    /// The stop's start, speed then, and the instant the disc comes to rest.
+    fn stop_phase(&self) -> Option<(ConveyorStop, f64, f64)> {
+        self.stop.map(|stop| {
+            let omega_start = self.running_omega(stop.start_s);
+            let rest_s = stop.start_s + omega_start.abs() / stop.deceleration_rad_s2;
+            (stop, omega_start, rest_s)
         })
     }
 
     /// The disc's angle at `t_s` (0 at t = 0): the exact integral of the speed profile.
     pub fn theta(&self, t_s: f64) -> f64 {
+        match self.stop_phase() {
+            Some((stop, omega_start, rest_s)) if t_s > stop.start_s => {
+                let tau = t_s.min(rest_s) - stop.start_s;
+                self.running_theta(stop.start_s) + omega_start * tau
+                    - omega_start.signum() * stop.deceleration_rad_s2 * tau * tau / 2.0
+            }
+            _ => self.running_theta(t_s),
+        }
+    }
+
+    /// The disc's speed at `t_s`.
+    pub fn omega(&self, t_s: f64) -> f64 {
+        match self.stop_phase() {
+            // Exactly still at rest (no rounding residue of the ramp).
+            Some((_, _, rest_s)) if t_s >= rest_s => 0.0,
+            Some((stop, omega_start, _)) if t_s > stop.start_s => {
+                let tau = t_s - stop.start_s;
+                omega_start - omega_start.signum() * stop.deceleration_rad_s2 * tau
+            }
+            _ => self.running_omega(t_s),
+        }
+    }
+
+    /// The disc's angular acceleration at `t_s`.
+    pub fn alpha(&self, t_s: f64) -> f64 {
+        match self.stop_phase() {
+            Some((stop, omega_start, rest_s)) if t_s > stop.start_s => {
+                if t_s < rest_s {
+                    -omega_start.signum() * stop.deceleration_rad_s2
+                } else {
+                    0.0
+                }
+            }
+            _ => {
+                let p = self.profile;
+                let w = core::f64::consts::TAU * p.ripple_hz;
+                p.speed_rad_s * p.ripple_fraction * w * (w * t_s).cos()
+            }
+        }
+    }
+
+    /// The angle of the turning disc, as if never stopped.
+    fn running_theta(&self, t_s: f64) -> f64 {
         let p = self.profile;
         let ripple = if p.ripple_hz > 0.0 {
             let w = core::f64::consts::TAU * p.ripple_hz;
@@ -69,8 +166,8 @@ impl Conveyor {
         self.theta0 + p.speed_rad_s * t_s + ripple
     }
 
-    /// The disc's speed at `t_s`.
-    pub fn omega(&self, t_s: f64) -> f64 {
+    /// The speed of the turning disc, as if never stopped.
+    fn running_omega(&self, t_s: f64) -> f64 {
         let p = self.profile;
         p.speed_rad_s
             * (1.0 + p.ripple_fraction * (core::f64::consts::TAU * p.ripple_hz * t_s).sin())
@@ -141,6 +238,68 @@ mod tests {
         }
     }
 
+    fn stopping_conveyor(speed_rad_s: f64) -> Conveyor {
+        Conveyor::new(
+            ConveyorProfile {
+                speed_rad_s,
+                ripple_fraction: 0.05,
+                ripple_hz: 0.3,
+            },
+            4096,
+            CounterWidth::Bits16,
+            5,
+        )
+        .unwrap()
+        .with_stop(ConveyorStop {
+            start_s: 3.3,
+            deceleration_rad_s2: 0.4,
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn a_stopping_disc_has_consistent_angle_speed_and_acceleration() {
+        for speed in [0.5, -0.5] {
+            let conveyor = stopping_conveyor(speed);
+            let h = 1e-6;
+            // Before, during and after the ramp (rest at about 3.3 + 1.25 s).
+            for &t in &[0.5, 3.0, 3.4, 4.0, 4.5, 6.0, 20.0] {
+                let fd_omega = (conveyor.theta(t + h) - conveyor.theta(t - h)) / (2.0 * h);
+                let fd_alpha = (conveyor.omega(t + h) - conveyor.omega(t - h)) / (2.0 * h);
+                assert!((fd_omega - conveyor.omega(t)).abs() < 1e-6, "omega at {t}");
+                assert!((fd_alpha - conveyor.alpha(t)).abs() < 1e-5, "alpha at {t}");
+            }
+            // Continuous at the stop and at rest; still after.
+            let stop = 3.3;
+            assert!((conveyor.theta(stop + 1e-9) - conveyor.theta(stop - 1e-9)).abs() < 1e-8);
+            assert_eq!(conveyor.omega(10.0), 0.0);
+            assert_eq!(conveyor.alpha(10.0), 0.0);
+            assert_eq!(conveyor.theta(10.0), conveyor.theta(30.0));
+            let rest = conveyor.rest_angle_if_stopped_at(3.3, 0.4);
+            assert!((conveyor.theta(30.0) - rest).abs() < 1e-12);
+            // It kept turning the same way while it stopped.
+            assert!((conveyor.theta(30.0) - conveyor.theta(stop)) * speed > 0.0);
+        }
+    }
+
+    #[test]
+    fn a_stopped_disc_still_reads_through_its_wrapping_encoder() {
+        let conveyor = stopping_conveyor(-0.5);
+        let mut unwrap = EncoderUnwrapper::new(CounterWidth::Bits16);
+        let one_count = core::f64::consts::TAU / 4096.0;
+        let start = conveyor.theta(0.0);
+        for k in 0..10_000 {
+            let t = k as f64 * 1e-3;
+            let counts = unwrap.update(conveyor.encoder_raw(t)).unwrap();
+            let theta = counts as f64 * one_count;
+            assert!((theta - (conveyor.theta(t) - start)).abs() <= one_count + 1e-9);
+        }
+        // Started at 5, about 1 300 counts backwards: the counter wrapped below zero.
+        assert!(conveyor.encoder_raw(0.0) == 5);
+        assert!(conveyor.encoder_raw(20.0) > 60_000);
+        assert_eq!(conveyor.encoder_raw(9.0), conveyor.encoder_raw(20.0));
+    }
+
     #[test]
     fn refuses_bad_settings() {
         let ok = ConveyorProfile {
@@ -155,5 +314,13 @@ mod tests {
             ..ok
         };
         assert!(Conveyor::new(bad, 100, CounterWidth::Bits16, 0).is_err());
+        let conveyor = Conveyor::new(ok, 100, CounterWidth::Bits16, 0).unwrap();
+        let stop = |start_s, deceleration_rad_s2| ConveyorStop {
+            start_s,
+            deceleration_rad_s2,
+        };
+        assert!(conveyor.clone().with_stop(stop(1.0, 0.0)).is_err());
+        assert!(conveyor.clone().with_stop(stop(f64::NAN, 1.0)).is_err());
+        assert!(conveyor.with_stop(stop(1.0, 1.0)).is_ok());
     }
 }

@@ -78,6 +78,27 @@ impl RobotPlant {
         self.time_s
     }
 
+    /// Replaces the payload the arm carries (the part grasped or released): a
+    /// point mass at `com_flange_m` in frame {6}. The state is unchanged.
+    pub fn set_payload(
+        &mut self,
+        payload_kg: f64,
+        com_flange_m: nalgebra::Vector3<f64>,
+    ) -> Result<()> {
+        self.model = self
+            .model
+            .try_with_payload(payload_kg, com_flange_m)
+            .map_err(|e| anyhow::anyhow!("{e}"))
+            .context("plant payload change")?;
+        Ok(())
+    }
+
+    /// Puts the arm at `state` (tests that need the gripper at a given place).
+    #[cfg(test)]
+    pub(crate) fn set_state(&mut self, state: JointState) {
+        self.state = state;
+    }
+
     /// Torque commands the drives had to clip so far.
     pub fn saturations(&self) -> u64 {
         self.saturations
@@ -203,6 +224,15 @@ mod tests {
             "gravity must move an unpowered arm"
         );
         plant.step(&JointVector::repeat(1e6), 1e-3).unwrap();
+        // A heavier payload changes the gravity load but not the state.
+        let before = plant.state();
+        let load = plant.model().gravity_torque(&before.q);
+        plant
+            .set_payload(2.5, Vector3::new(0.0, 0.0, 0.15))
+            .unwrap();
+        assert_eq!(plant.state(), before);
+        assert!((plant.model().gravity_torque(&before.q) - load).amax() > 0.1);
+        assert!(plant.set_payload(f64::NAN, Vector3::zeros()).is_err());
         assert_eq!(plant.saturations(), 6);
         assert!(plant.step(&JointVector::zeros(), 0.0).is_err());
     }

@@ -50,7 +50,8 @@ impl ControllerApp {
                 let mut extra: Vec<Message, MAX_TICK_MESSAGES> = Vec::new();
                 if let Some(pick) = self.pick.as_mut() {
                     let command = pick.on_sensor_sample(sample, &mut extra);
-                    self.link.set_control_ticks(self.link.status().control_ticks.saturating_add(1));
+                    self.link
+                        .set_control_ticks(self.link.status().control_ticks.saturating_add(1));
                     let _ = out.push(Message::ActuatorCommand(command));
                     if let Some((serial, report)) = pick.calibration_report() {
                         if serial != self.reported_estimate {

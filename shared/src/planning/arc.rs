@@ -91,11 +91,12 @@ impl<T: RealField + Copy> ArcMove<T> {
             });
         }
         let ok = |x: T| x.is_finite() && x > T::zero();
-        if !(ok(limits.max_speed_m_s)
+        let limits_ok = ok(limits.max_speed_m_s)
             && ok(limits.max_acceleration_m_s2)
-            && ok(limits.max_yaw_rate_rad_s))
-            || !(limits.min_duration_s.is_finite() && limits.min_duration_s >= T::zero())
-        {
+            && ok(limits.max_yaw_rate_rad_s)
+            && limits.min_duration_s.is_finite()
+            && limits.min_duration_s >= T::zero();
+        if !limits_ok {
             return Err(PlanError::InvalidLimits {
                 what: "arc speed, acceleration and yaw-rate limits must be finite and positive",
             });

@@ -28,5 +28,8 @@ pub use ik::{solve_ik, IkConfig};
 pub use intercept::{
     plan_intercept, plan_intercept_where, InterceptLimits, InterceptPlan, TaskState,
 };
-pub use path::{check_joint_limits, TaskPath};
+pub use path::{
+    check_joint_limits, well_conditioned, within_reach, TaskPath, MAX_STRETCH,
+    MIN_ARM_MANIPULABILITY, MIN_WRIST_SINE,
+};
 pub use quintic::Quintic;

@@ -11,6 +11,46 @@ use super::ik::{solve_ik, IkConfig};
 use super::{PlanError, TaskState};
 use crate::robot::{JointVector, Puma560};
 
+/// Margins a plan keeps from the PUMA's singularities. With a spherical wrist,
+/// `det J` factors into an arm term (elbow stretch, wrist centre over the
+/// shoulder) times `sin q5` (the wrist). The ready posture's arm term is 0.11
+/// m^3 and a straight elbow's 0; below the margins Eq 23's joint accelerations,
+/// and the joint speeds a task speed needs, grow without bound.
+pub const MIN_ARM_MANIPULABILITY: f64 = 0.05;
+pub const MIN_WRIST_SINE: f64 = 0.1;
+
+/// Largest share of the arm's full stretch (shoulder to wrist centre, `a2 +
+/// sqrt(a3^2 + d4^2)`) a plan may ask for: the elbow singularity is the sphere
+/// at the full stretch, and inverse kinematics that jumps to the other elbow
+/// branch between two samples could otherwise hide a path across it.
+pub const MAX_STRETCH: f64 = 0.93;
+
+/// Whether the wrist centre over a gripper-down flange at `flange` is within
+/// [`MAX_STRETCH`] of the arm's reach (from the task-space position alone).
+pub fn within_reach<T: RealField + Copy>(
+    robot: &Puma560<T>,
+    flange: &nalgebra::Vector3<T>,
+) -> bool {
+    let [l1, l2, l3, l4, _, l6] = robot.dh_table();
+    let stretch = l2.a + (l3.a * l3.a + l4.d * l4.d).sqrt();
+    // The wrist centre sits d6 above a downward flange; the arm's plane is offset
+    // d2 + d3 from the base axis; the shoulder is d1 above the base.
+    let wrist = flange + nalgebra::Vector3::new(T::zero(), T::zero(), l6.d);
+    let offset = l2.d + l3.d;
+    let horizontal_sq = wrist.x * wrist.x + wrist.y * wrist.y - offset * offset;
+    let vertical = wrist.z - l1.d;
+    let reach_sq = horizontal_sq.max(T::zero()) + vertical * vertical;
+    let limit = stretch * convert::<f64, T>(MAX_STRETCH);
+    reach_sq <= limit * limit
+}
+
+/// Whether `q` keeps the margins from every singularity.
+pub fn well_conditioned<T: RealField + Copy>(robot: &Puma560<T>, q: &JointVector<T>) -> bool {
+    let wrist = q.get(4).map_or_else(T::zero, |q5| q5.sin().abs());
+    let arm_margin: T = convert(MIN_ARM_MANIPULABILITY);
+    wrist >= convert(MIN_WRIST_SINE) && robot.jacobian(q).determinant().abs() >= arm_margin * wrist
+}
+
 /// A desired flange motion over `[0, duration]` (gripper down, yaw about Z).
 pub trait TaskPath<T: RealField + Copy> {
     fn duration(&self) -> T;
@@ -38,11 +78,27 @@ pub fn check_joint_limits<T: RealField + Copy>(
     let limits = robot.joint_limits();
     let ik = IkConfig::default();
     let mut q = *q_start;
+    let mut previous_sign = None;
     for t in sample_times(path.duration(), samples) {
         let time_s: f64 = nalgebra::try_convert(t).unwrap_or(f64::NAN);
         let state = path.sample(t);
+        if !within_reach(robot, &state.position) {
+            return Err(PlanError::Singular { time_s });
+        }
         q = solve_ik(robot, &state.pose(), &q, &ik)?;
-        let lu = robot.jacobian(&q).lu();
+        if !well_conditioned(robot, &q) {
+            return Err(PlanError::Singular { time_s });
+        }
+        let jacobian = robot.jacobian(&q);
+        // det J changes sign only through a singularity: two well-conditioned
+        // samples on either side of one (the inverse kinematics having jumped
+        // to the other elbow or wrist branch) must not hide the crossing.
+        let sign = jacobian.determinant() > T::zero();
+        if previous_sign.is_some_and(|previous| previous != sign) {
+            return Err(PlanError::Singular { time_s });
+        }
+        previous_sign = Some(sign);
+        let lu = jacobian.lu();
         let qd = lu
             .solve(&state.twist())
             .ok_or(PlanError::Singular { time_s })?;

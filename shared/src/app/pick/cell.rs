@@ -54,11 +54,18 @@ impl Cell {
             (2..=MAX_PART_FEATURES).contains(&usize::from(config.part_feature_count)),
             "part_feature_count",
         )?;
-        check(config.conveyor_counts_per_rev > 0, "conveyor_counts_per_rev")?;
+        check(
+            config.conveyor_counts_per_rev > 0,
+            "conveyor_counts_per_rev",
+        )?;
         let counter_width = match config.conveyor_counter_bits {
             16 => CounterWidth::Bits16,
             32 => CounterWidth::Bits32,
-            _ => return Err(ConfigError { field: "conveyor_counter_bits" }),
+            _ => {
+                return Err(ConfigError {
+                    field: "conveyor_counter_bits",
+                })
+            }
         };
         check(
             config.joint_counts_per_rad.iter().all(|c| positive(*c)),
@@ -111,7 +118,12 @@ impl Cell {
     pub fn joint_angles(&self, counts: &[i32; 6]) -> crate::robot::JointVector<f32> {
         crate::robot::JointVector::from_fn(|i, _| {
             let count = counts.get(i).copied().unwrap_or(0);
-            let per_rad = self.config.joint_counts_per_rad.get(i).copied().unwrap_or(1.0);
+            let per_rad = self
+                .config
+                .joint_counts_per_rad
+                .get(i)
+                .copied()
+                .unwrap_or(1.0);
             (count as f32 + 0.5) / per_rad
         })
     }

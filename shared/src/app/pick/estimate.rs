@@ -38,7 +38,10 @@ impl CellEstimate {
     pub fn new(result: &CalibrationResult, sigma: &EstimateUncertainty, time_us: u64) -> Self {
         let rows = result.camera.disc_from_camera.rotation;
         let rotation = Matrix3::from_fn(|r, c| {
-            rows.get(r).and_then(|row| row.get(c)).copied().unwrap_or(0.0)
+            rows.get(r)
+                .and_then(|row| row.get(c))
+                .copied()
+                .unwrap_or(0.0)
         });
         let [cx, cy, cz] = result.camera.disc_from_camera.translation_m;
         // The optical axis in the disc frame is the rotation's third column.

@@ -13,13 +13,15 @@ use super::settings::PickSettings;
 use crate::app::tool::{effector_marks_base, TOOL_LENGTH_M};
 use crate::observation::CameraIntrinsics;
 use crate::planning::{
-    gripper_down_rotation, plan_intercept_where, solve_ik, ArcPoint, IkConfig, InterceptLimits,
-    InterceptPlan, PlanError, TaskState,
+    gripper_down_rotation, plan_intercept_where, solve_ik, well_conditioned, within_reach,
+    ArcPoint, IkConfig, InterceptLimits, InterceptPlan, PlanError, TaskState,
 };
 use crate::robot::{JointVector, Puma560};
 
-/// Most poses shown for the robot-to-disc calibration.
+/// Most poses shown for the robot-to-disc calibration, out of at most
+/// `MAX_CANDIDATES` (3 heights, 2 radial and 3 lateral positions).
 pub const MAX_CALIBRATION_POSES: usize = 8;
+const MAX_CANDIDATES: usize = 18;
 
 /// Closest a gripper-down grasp point may come to the base axis (the shoulder
 /// singularity, and the robot's own column).
@@ -63,7 +65,7 @@ pub fn calibration_poses(
     };
     let lateral = Vector3::new(-radial.y, radial.x, 0.0);
     let part_top = estimate.disc_height() + estimate.part_rotating.z;
-    let mut poses = Vec::new();
+    let mut candidates: Vec<ArcPoint<f32>, MAX_CANDIDATES> = Vec::new();
     let mut q = *q_seed;
     let ik = IkConfig::default();
     for (row, height) in settings.calibration_heights_m.iter().enumerate() {
@@ -90,20 +92,29 @@ pub fn calibration_poses(
                             && v <= f64::from(camera.height) - VIEW_MARGIN_PX
                     })
                 });
-                if !in_view {
+                if !in_view || !within_reach(robot, &pose.translation.vector) {
                     continue;
                 }
                 let Ok(solution) = solve_ik(robot, &pose, &q, &ik) else {
                     continue;
                 };
-                q = solution;
-                let flange = pose.translation.vector;
-                let mut arc = ArcPoint::from_position(&flange, yaw);
-                arc.yaw_rad = yaw;
-                if poses.push(arc).is_err() {
-                    return poses;
+                if !well_conditioned(robot, &solution) {
+                    continue;
                 }
+                q = solution;
+                let mut arc = ArcPoint::from_position(&pose.translation.vector, yaw);
+                arc.yaw_rad = yaw;
+                let _ = candidates.push(arc);
             }
+        }
+    }
+    // An even spread over the candidates (heights and sides), in visiting order.
+    let mut poses = Vec::new();
+    let n = candidates.len();
+    let take = n.min(MAX_CALIBRATION_POSES);
+    for i in 0..take {
+        if let Some(pose) = candidates.get(i * n / take.max(1)) {
+            let _ = poses.push(*pose);
         }
     }
     poses
@@ -129,7 +140,9 @@ fn reachable_at(
         return false;
     }
     let pose = flange_pose(&grasp.position, grasp.yaw);
-    solve_ik(robot, &pose, q_seed, &IkConfig::default()).is_ok()
+    within_reach(robot, &pose.translation.vector)
+        && solve_ik(robot, &pose, q_seed, &IkConfig::default())
+            .is_ok_and(|q| well_conditioned(robot, &q))
 }
 
 /// The earliest intercept of the part's hover point from `start` (at rest, joint

@@ -32,8 +32,7 @@ use nalgebra::{Vector3, Vector6};
 use self::cell::{Cell, ConfigError};
 use self::estimate::CellEstimate;
 use self::jobs::{
-    calibration_poses, plan_part_intercept, yaw_at_azimuth, ConveyorSnapshot,
-    MAX_CALIBRATION_POSES,
+    calibration_poses, plan_part_intercept, yaw_at_azimuth, ConveyorSnapshot, MAX_CALIBRATION_POSES,
 };
 use self::motion::{height_profile, Motion, Prediction};
 use self::settings::PickSettings;
@@ -46,18 +45,16 @@ use crate::control::{
 };
 use crate::fusion::conveyor::wrap_pi;
 use crate::fusion::{ConveyorFilter, ConveyorState, LatchedSample, TriggerLatch};
-use crate::planning::{
-    ArcLimits, ArcMove, ArcPoint, InterceptPlan, PlanError, TaskState,
-};
+use crate::planning::{ArcLimits, ArcMove, ArcPoint, InterceptPlan, PlanError, TaskState};
 use crate::protocol::{
     ActuatorCommand, CameraFeatureFrame, CellConfig, FaultCause, GripperCommand, Message,
     PickPhase, PickTelemetry, SensorSample,
 };
 use crate::robot::{DriveOptions, JointVector, Puma560, SIMULATOR_COULOMB_WIDTH};
 
-/// The controller's calibrator: 96 frames and 48 sightings of the marks (about
-/// 12 KiB), the same in the firmware and in the simulator.
-pub type PickCalibrator = SelfCalibrator<96, 48>;
+/// The controller's calibrator: 96 frames and 64 sightings of the marks (about
+/// 13 KiB), the same in the firmware and in the simulator.
+pub type PickCalibrator = SelfCalibrator<96, 64>;
 
 /// Triggers awaiting their frames (frames later than 8 periods are stale).
 const PENDING_TRIGGERS: usize = 8;
@@ -71,6 +68,7 @@ enum Step {
     Start,
     SearchApproach,
     SearchSweep,
+    SearchReturn,
     EstimatePreliminary,
     CalibrateMove(u8),
     CalibrateDwell(u8),
@@ -96,7 +94,9 @@ impl Step {
     fn phase(self) -> PickPhase {
         match self {
             Self::Start => PickPhase::Idle,
-            Self::SearchApproach | Self::SearchSweep => PickPhase::SearchEffector,
+            Self::SearchApproach | Self::SearchSweep | Self::SearchReturn => {
+                PickPhase::SearchEffector
+            }
             Self::CalibrateMove(_) | Self::CalibrateDwell(_) => PickPhase::CalibrateBase,
             Self::EstimatePreliminary | Self::EstimateFinal => PickPhase::Estimating,
             Self::Locate => PickPhase::Locate,
@@ -120,6 +120,7 @@ impl Step {
             self,
             Self::SearchApproach
                 | Self::SearchSweep
+                | Self::SearchReturn
                 | Self::CalibrateMove(_)
                 | Self::CalibrateDwell(_)
                 | Self::Locate
@@ -148,7 +149,9 @@ impl Step {
 /// Background work the control loop has asked for.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum JobRequest {
-    Estimate { preliminary: bool },
+    Estimate {
+        preliminary: bool,
+    },
     Plan {
         start: TaskState<f32>,
         q_start: JointVector<f32>,
@@ -156,8 +159,9 @@ enum JobRequest {
     },
 }
 
-/// Its result.
+/// Its result (one lives at a time, so the size difference does not matter).
 #[derive(Debug, Clone, PartialEq)]
+#[allow(clippy::large_enum_variant)]
 enum JobOutcome {
     Estimate(Result<(CellEstimate, Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>), FaultCause>),
     Plan(Result<(InterceptPlan<f32>, Prediction), PlanError>),
@@ -214,6 +218,10 @@ pub struct PickController {
     job: Option<Job>,
     next_plan_attempt_s: f32,
     transfer_z: f32,
+    /// Sum of the unit vectors towards the marks where the camera saw them (their
+    /// mean direction is where the disc is, roughly).
+    sighting_direction: [f32; 2],
+    calibration_rounds: u8,
     estimate_serial: u32,
     qdd_commanded: JointVector<f32>,
     tool_measured: Vector3<f32>,
@@ -267,9 +275,10 @@ impl PickController {
                 field: "controller model",
             })?
             .cast::<f32>();
-        let controller = TaskSpaceController::new(controller_config()?).map_err(|_| ConfigError {
-            field: "controller gains",
-        })?;
+        let controller =
+            TaskSpaceController::new(controller_config()?).map_err(|_| ConfigError {
+                field: "controller gains",
+            })?;
         let rest = TaskState::at_rest(Vector3::zeros(), 0.0);
         Ok(Self {
             cell,
@@ -306,6 +315,8 @@ impl PickController {
             job: None,
             next_plan_attempt_s: 0.0,
             transfer_z: 0.0,
+            sighting_direction: [0.0; 2],
+            calibration_rounds: 0,
             estimate_serial: 0,
             qdd_commanded: JointVector::zeros(),
             tool_measured: Vector3::zeros(),
@@ -350,10 +361,18 @@ impl PickController {
             return Ok(());
         }
         let observation = self.observation(frame, &latched)?;
-        let sighting = observation.effector.is_some();
+        let sighting = observation.effector.map(|e| e.base_m[0]);
         match self.calibrator.push(&observation) {
-            Ok(()) if sighting => {
-                self.counters.effector_sightings = self.counters.effector_sightings.saturating_add(1)
+            Ok(()) if sighting.is_some() => {
+                self.counters.effector_sightings =
+                    self.counters.effector_sightings.saturating_add(1);
+                if let Some([x, y, _]) = sighting {
+                    let norm = libm::hypot(x, y);
+                    if norm > 1e-6 {
+                        let [sx, sy] = self.sighting_direction;
+                        self.sighting_direction = [sx + (x / norm) as f32, sy + (y / norm) as f32];
+                    }
+                }
             }
             Ok(()) => {}
             Err(_) => self.counters.frames_refused = self.counters.frames_refused.saturating_add(1),
@@ -390,7 +409,9 @@ impl PickController {
         }
         let request = job.request;
         let outcome = match request {
-            JobRequest::Estimate { preliminary } => JobOutcome::Estimate(self.estimate_job(preliminary)),
+            JobRequest::Estimate { preliminary } => {
+                JobOutcome::Estimate(self.estimate_job(preliminary))
+            }
             JobRequest::Plan {
                 start,
                 q_start,
@@ -469,7 +490,12 @@ impl PickController {
         self.ticks = self.ticks.saturating_add(1);
 
         let q_measured = self.cell.joint_angles(&sample.joint_counts);
-        if self.observer.update(&q_measured, &self.qdd_commanded, dt_s).is_err() && self.ticks > 1 {
+        if self
+            .observer
+            .update(&q_measured, &self.qdd_commanded, dt_s)
+            .is_err()
+            && self.ticks > 1
+        {
             self.raise(FaultCause::JointEncoder);
         }
         match self.conveyor.update(sample.conveyor_counts, sample.time_us) {
@@ -487,7 +513,9 @@ impl PickController {
             self.begin(&flange);
         }
         self.advance();
-        if self.step.needs_vision() && self.now_s - self.last_paired_s > self.settings.vision_stale_s {
+        if self.step.needs_vision()
+            && self.now_s - self.last_paired_s > self.settings.vision_stale_s
+        {
             self.raise(FaultCause::VisionStale);
         }
 
@@ -653,7 +681,10 @@ impl PickController {
     }
 
     fn hold_here(&mut self) {
-        self.motion = Motion::Hold(TaskState::at_rest(self.reference.position, self.reference.yaw));
+        self.motion = Motion::Hold(TaskState::at_rest(
+            self.reference.position,
+            self.reference.yaw,
+        ));
     }
 
     /// Enters `step`, setting the motion it starts with.
@@ -668,8 +699,23 @@ impl PickController {
                 return;
             }
             Step::SearchApproach | Step::SearchSweep => {
-                let side = if step == Step::SearchApproach { -1.0 } else { 1.0 };
+                let side = if step == Step::SearchApproach {
+                    -1.0
+                } else {
+                    1.0
+                };
                 let azimuth = self.start_pose.azimuth_rad + side * settings.search_half_sweep_rad;
+                self.arc_to(ArcPoint {
+                    radius_m: settings.search_radius_m,
+                    azimuth_rad: azimuth,
+                    z_m: travel_z,
+                    yaw_rad: yaw_at_azimuth(&self.start_pose, azimuth),
+                })
+            }
+            Step::SearchReturn => {
+                // Back to where the marks were seen: over the disc, near the part.
+                let [sx, sy] = self.sighting_direction;
+                let azimuth = self.azimuth_near_start(libm::atan2f(sy, sx));
                 self.arc_to(ArcPoint {
                     radius_m: settings.search_radius_m,
                     azimuth_rad: azimuth,
@@ -680,7 +726,10 @@ impl PickController {
             Step::EstimatePreliminary | Step::EstimateFinal => {
                 self.hold_here();
                 let preliminary = step == Step::EstimatePreliminary;
-                self.request(JobRequest::Estimate { preliminary }, settings.estimate_budget_s);
+                self.request(
+                    JobRequest::Estimate { preliminary },
+                    settings.estimate_budget_s,
+                );
                 return;
             }
             Step::CalibrateMove(i) => match self.poses.get(usize::from(i)).copied() {
@@ -797,9 +846,10 @@ impl PickController {
                 if self.counters.effector_sightings < settings.min_effector_sightings {
                     self.raise(FaultCause::EffectorNotSeen);
                 } else {
-                    self.enter(Step::EstimatePreliminary);
+                    self.enter(Step::SearchReturn);
                 }
             }
+            Step::SearchReturn if finished => self.enter(Step::EstimatePreliminary),
             Step::EstimatePreliminary | Step::EstimateFinal => self.on_estimate(in_step),
             Step::CalibrateMove(i) if finished => self.enter(Step::CalibrateDwell(i)),
             Step::CalibrateDwell(i) if in_step >= settings.calibration_dwell_s => {
@@ -810,7 +860,7 @@ impl PickController {
             Step::Track => {
                 let error = (self.tool_measured
                     - (self.reference.position - Vector3::new(0.0, 0.0, TOOL_LENGTH_M as f32)))
-                    .norm();
+                .norm();
                 if in_step >= settings.track_settle_s && error <= settings.track_tolerance_m {
                     self.enter(Step::Descend);
                 } else if in_step >= settings.track_timeout_s {
@@ -837,8 +887,19 @@ impl PickController {
             Some(JobOutcome::Estimate(Ok((estimate, poses)))) => {
                 self.estimate = Some(estimate);
                 self.estimate_serial = self.estimate_serial.wrapping_add(1);
+                let unsure = estimate.report.sigma_base_m > self.settings.confident_base_sigma_m;
                 if preliminary {
                     self.poses = poses;
+                    self.calibration_rounds = 1;
+                    self.enter(Step::CalibrateMove(0));
+                } else if unsure
+                    && self.calibration_rounds < self.settings.max_calibration_rounds
+                    && !self.poses.is_empty()
+                {
+                    // Not sure enough of the base yet: show the marks again (the
+                    // poses in reverse, so the arm does not travel back first).
+                    self.calibration_rounds = self.calibration_rounds.saturating_add(1);
+                    self.poses.reverse();
                     self.enter(Step::CalibrateMove(0));
                 } else {
                     self.enter(Step::Locate);
@@ -895,9 +956,13 @@ impl PickController {
         }
     }
 
-    fn emit_telemetry(&self, part: &Option<TaskState<f32>>, out: &mut Vec<Message, MAX_TICK_MESSAGES>) {
+    fn emit_telemetry(
+        &self,
+        part: &Option<TaskState<f32>>,
+        out: &mut Vec<Message, MAX_TICK_MESSAGES>,
+    ) {
         let period = u64::from(self.cell.config.telemetry_period_ticks);
-        if period == 0 || (self.ticks - 1) % period != 0 {
+        if period == 0 || !(self.ticks - 1).is_multiple_of(period) {
             return;
         }
         let state = self.conveyor_state;
@@ -912,9 +977,14 @@ impl PickController {
             sigma_omega_rad_s: state.map_or(0.0, |s| s.sigma_omega),
             part_base_m: part.map(|p| [p.position.x, p.position.y, p.position.z]),
             part_yaw_base_rad: part.map_or(0.0, |p| p.yaw),
-            part_velocity_base_m_s: part.map_or([0.0; 3], |p| [p.velocity.x, p.velocity.y, p.velocity.z]),
+            part_velocity_base_m_s: part
+                .map_or([0.0; 3], |p| [p.velocity.x, p.velocity.y, p.velocity.z]),
             part_sigma_m: self.estimate.map_or(0.0, |e| e.report.sigma_part_m),
-            tool_base_m: [self.tool_measured.x, self.tool_measured.y, self.tool_measured.z],
+            tool_base_m: [
+                self.tool_measured.x,
+                self.tool_measured.y,
+                self.tool_measured.z,
+            ],
             tool_reference_base_m: [tool_reference.x, tool_reference.y, tool_reference.z],
             tool_yaw_rad: self.tool_yaw_measured,
             tool_reference_yaw_rad: wrap_pi(self.reference.yaw),

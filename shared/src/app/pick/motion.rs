@@ -9,7 +9,9 @@
 use nalgebra::{convert, Vector1, Vector3};
 
 use crate::app::tool::TOOL_LENGTH_M;
-use crate::planning::{nearest_equivalent_yaw, ArcMove, InterceptPlan, Quintic, TaskPath, TaskState};
+use crate::planning::{
+    nearest_equivalent_yaw, ArcMove, InterceptPlan, Quintic, TaskPath, TaskState,
+};
 
 /// The part's grasp point as the conveyor predicts it: Eq 1 with theta
 /// extrapolated at constant speed from the plan's start.
@@ -23,8 +25,14 @@ pub struct Prediction {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Motion {
     Hold(TaskState<f32>),
-    Arc { path: ArcMove<f32>, start_s: f32 },
-    Quintic { path: InterceptPlan<f32>, start_s: f32 },
+    Arc {
+        path: ArcMove<f32>,
+        start_s: f32,
+    },
+    Quintic {
+        path: InterceptPlan<f32>,
+        start_s: f32,
+    },
     /// The intercept: the planned quintic plus the difference between the
     /// part's live fused motion and the motion the plan assumed, blended in
     /// from 0 to 1 over the plan, so the path ends exactly on the live part
@@ -35,7 +43,10 @@ pub enum Motion {
         prediction: Prediction,
     },
     /// Riding with the part, `offset` above its grasp point (a quintic in height).
-    Follow { offset: Quintic<f32, 1>, start_s: f32 },
+    Follow {
+        offset: Quintic<f32, 1>,
+        start_s: f32,
+    },
 }
 
 /// The flange state that puts the grasp point `height_above` over `grasp`.
@@ -63,7 +74,9 @@ impl Motion {
         match self {
             Self::Hold(_) | Self::Follow { .. } => None,
             Self::Arc { path, .. } => Some(path.duration()),
-            Self::Quintic { path, .. } | Self::Intercept { plan: path, .. } => Some(path.duration()),
+            Self::Quintic { path, .. } | Self::Intercept { plan: path, .. } => {
+                Some(path.duration())
+            }
         }
     }
 
@@ -183,8 +196,13 @@ mod tests {
             s.position.y += 0.02;
             s
         };
-        let plan = InterceptPlan::between(&start, &flange_over(&assumed(1.5), hover), 1.5, core::f32::consts::PI)
-            .unwrap();
+        let plan = InterceptPlan::between(
+            &start,
+            &flange_over(&assumed(1.5), hover),
+            1.5,
+            core::f32::consts::PI,
+        )
+        .unwrap();
         let motion = Motion::Intercept {
             plan,
             start_s: 10.0,
@@ -193,9 +211,20 @@ mod tests {
                 omega: 0.0,
             },
         };
-        let at = |t: f32| motion.reference(10.0 + t, Some(&moving(t)), |tt| Some(assumed(tt)), hover, &start);
+        let at = |t: f32| {
+            motion.reference(
+                10.0 + t,
+                Some(&moving(t)),
+                |tt| Some(assumed(tt)),
+                hover,
+                &start,
+            )
+        };
         let begin = at(0.0);
-        assert!((begin.position - start.position).norm() < 1e-5, "starts where the arm is");
+        assert!(
+            (begin.position - start.position).norm() < 1e-5,
+            "starts where the arm is"
+        );
         let end = at(1.5);
         let target = flange_over(&moving(1.5), hover);
         assert!((end.position - target.position).norm() < 1e-5);
@@ -212,12 +241,18 @@ mod tests {
     #[test]
     fn following_rides_with_the_part_at_the_offset_and_holds_without_one() {
         let offset = height_profile(0.06, 0.0, 1.0).unwrap();
-        let motion = Motion::Follow { offset, start_s: 0.0 };
+        let motion = Motion::Follow {
+            offset,
+            start_s: 0.0,
+        };
         let previous = TaskState::at_rest(Vector3::new(0.5, 0.0, 0.5), 0.3 + core::f32::consts::PI);
         let r = motion.reference(1.0, Some(&moving(1.0)), |_| None, 0.06, &previous);
         let expected = moving(1.0).position + Vector3::new(0.0, 0.0, TOOL_LENGTH_M as f32);
         assert!((r.position - expected).norm() < 1e-6);
-        assert!((r.yaw - previous.yaw).abs() < 1e-6, "same yaw modulo pi: no wrist flip");
+        assert!(
+            (r.yaw - previous.yaw).abs() < 1e-6,
+            "same yaw modulo pi: no wrist flip"
+        );
         let held = motion.reference(1.0, None, |_| None, 0.06, &previous);
         assert_eq!(held.position, previous.position);
         assert!(!motion.finished(100.0));

@@ -17,7 +17,7 @@ pub struct PickSettings {
     pub min_effector_sightings: u32,
     /// Grasp-point heights above the part's top at which the marks are shown for
     /// the robot-to-disc calibration, and how long each pose is held.
-    pub calibration_heights_m: [f32; 2],
+    pub calibration_heights_m: [f32; 3],
     pub calibration_dwell_s: f32,
     /// Hover height above the grasp point while intercepting and tracking.
     pub hover_height_m: f32,
@@ -48,6 +48,10 @@ pub struct PickSettings {
     /// A calibration is refused when its 1-sigma part or base position exceeds these.
     pub max_part_sigma_m: f32,
     pub max_base_sigma_m: f32,
+    /// Above this 1-sigma of the base position the marks are shown once more
+    /// (at most `max_calibration_rounds` rounds in all) before the pick.
+    pub confident_base_sigma_m: f32,
+    pub max_calibration_rounds: u8,
     /// Faults: no paired camera frame for this long while vision is needed; the
     /// gripper this far from its reference.
     pub vision_stale_s: f32,
@@ -67,26 +71,28 @@ impl Default for PickSettings {
             search_tool_height_m: 0.70,
             search_half_sweep_rad: 2.6,
             min_effector_sightings: 6,
-            calibration_heights_m: [0.10, 0.25],
-            calibration_dwell_s: 0.4,
+            calibration_heights_m: [0.08, 0.20, 0.35],
+            calibration_dwell_s: 0.6,
             hover_height_m: 0.06,
-            track_settle_s: 0.6,
+            track_settle_s: 0.4,
             track_tolerance_m: 0.003,
             track_timeout_s: 3.0,
-            descend_s: 1.2,
+            descend_s: 1.0,
             grasp_settle_s: 0.3,
             grasp_close_s: 0.3,
             lift_height_m: 0.15,
             lift_s: 1.2,
             drop_hover_m: 0.10,
             release_s: 0.4,
-            grasp_window_s: 3.5,
+            grasp_window_s: 2.6,
             steady_alpha_rad_s2: 0.2,
             locate_timeout_s: 40.0,
             estimate_budget_s: 1.0,
             plan_budget_s: 0.25,
             max_part_sigma_m: 0.005,
             max_base_sigma_m: 0.03,
+            confident_base_sigma_m: 0.003,
+            max_calibration_rounds: 1,
             vision_stale_s: 2.0,
             tracking_error_limit_m: 0.03,
             stop_s: 0.6,

@@ -1,0 +1,211 @@
+//! The full pick end to end: the simulated world against the controller
+//! application over the serial protocol (in process), on the embedded default
+//! scenario and on injected faults.
+
+use host_sim::pick::montecarlo::{run_trials, TrialSummary};
+use host_sim::pick::record::{PickResult, PickRun};
+use host_sim::pick::runner::run_pick_in_process;
+use host_sim::pick::scenario::{PickExperiment, PickScenarioFile};
+use shared::protocol::{FaultCause, PickPhase};
+
+fn experiment(name: &str) -> PickExperiment {
+    PickScenarioFile::embedded_default()
+        .unwrap()
+        .experiment(name)
+        .unwrap()
+        .clone()
+}
+
+fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// Limits every run must respect, whatever its outcome.
+fn assert_safe(run: &PickRun) {
+    assert!(
+        run.max_speed_ratio < 1.0,
+        "joint speed limit: {}",
+        run.max_speed_ratio
+    );
+    assert!(
+        run.max_torque_ratio <= 1.0,
+        "torque limit: {}",
+        run.max_torque_ratio
+    );
+    assert!(
+        run.min_tool_clearance_m.is_nan() || run.min_tool_clearance_m >= 0.0,
+        "the gripper went below the disc surface: {} m",
+        run.min_tool_clearance_m
+    );
+}
+
+#[test]
+fn the_paper_experiments_and_the_moving_pick_succeed() {
+    for name in [
+        "experiment-1",
+        "experiment-2-4cm",
+        "experiment-2-7cm",
+        "turning",
+    ] {
+        let run = run_pick_in_process(&experiment(name), 1).unwrap();
+        assert_eq!(run.result, PickResult::Success, "{name}");
+        assert_safe(&run);
+        let grasp = run.grasp.unwrap();
+        let estimate_error = norm(grasp.estimate_error_m.unwrap());
+        // The paper reports about 10 mm and 5 degrees; the gripper tolerates 5 mm horizontally.
+        assert!(
+            estimate_error < 0.005,
+            "{name}: estimate error {estimate_error} m"
+        );
+        assert!(
+            grasp.estimate_yaw_error_rad.unwrap() < 1.5f64.to_radians(),
+            "{name}"
+        );
+        assert!(norm(grasp.position_error_m) < 0.005, "{name}: grasp error");
+        assert!(run.calibrated_after_s.unwrap() < 60.0, "{name}");
+        assert!(
+            run.placed_error_m.unwrap() < 0.01,
+            "{name}: placed off the drop-off"
+        );
+        // Telemetry covered the run and the controller ended at rest, done.
+        assert!(run.records.len() > 1000, "{name}");
+        assert_eq!(run.phases.last().map(|p| p.phase), Some(PickPhase::Done));
+        let last = run.records.last().unwrap();
+        assert!(
+            last.qd_rad_s.iter().all(|v| v.abs() < 0.01),
+            "{name}: still moving"
+        );
+    }
+}
+
+#[test]
+fn a_pick_is_deterministic() {
+    let turning = experiment("turning");
+    let first = run_pick_in_process(&turning, 5).unwrap();
+    let second = run_pick_in_process(&turning, 5).unwrap();
+    assert_eq!(first, second);
+}
+
+#[test]
+fn seeded_random_workcells_are_picked() {
+    let turning = experiment("turning");
+    let progress = indicatif::ProgressBar::hidden();
+    let trials: Vec<TrialSummary> = run_trials(&turning, 12, 7, &progress);
+    let successes = trials.iter().filter(|t| t.success).count();
+    assert!(successes >= 11, "{successes} of 12: {trials:#?}");
+    for trial in &trials {
+        assert!(
+            trial.max_speed_ratio < 1.0 && trial.max_torque_ratio <= 1.0,
+            "{trial:?}"
+        );
+    }
+}
+
+fn with_camera_fault(
+    mut experiment: PickExperiment,
+    blackout_after_s: Option<f64>,
+    hidden: bool,
+) -> PickExperiment {
+    experiment.camera.faults.blackout_after_s = blackout_after_s;
+    experiment.camera.faults.effector_hidden = hidden;
+    experiment
+}
+
+/// The controller stopped with `cause`, decelerated to rest within its stop
+/// time, and held still until the end of the run.
+fn assert_controlled_stop(run: &PickRun, cause: FaultCause) {
+    assert_eq!(run.result, PickResult::Fault(cause));
+    assert_safe(run);
+    let stopping = run
+        .phases
+        .iter()
+        .find(|p| p.phase == PickPhase::Stopping)
+        .unwrap();
+    let faulted = run
+        .phases
+        .iter()
+        .find(|p| p.phase == PickPhase::Faulted)
+        .unwrap();
+    assert!(
+        faulted.t_s - stopping.t_s < 1.0,
+        "stop took {} s",
+        faulted.t_s - stopping.t_s
+    );
+    let held: Vec<_> = run
+        .records
+        .iter()
+        .filter(|r| r.t_s > faulted.t_s + 0.2)
+        .collect();
+    assert!(!held.is_empty());
+    for record in held {
+        assert!(
+            record.qd_rad_s.iter().all(|v| v.abs() < 0.02),
+            "not holding at {}",
+            record.t_s
+        );
+    }
+}
+
+#[test]
+fn vision_going_stale_stops_the_arm() {
+    // The camera dies while the arm is calibrating: stale after 2 s, then a controlled stop.
+    let run = run_pick_in_process(
+        &with_camera_fault(experiment("turning"), Some(25.0), false),
+        1,
+    )
+    .unwrap();
+    assert_controlled_stop(&run, FaultCause::VisionStale);
+    let stopping = run
+        .phases
+        .iter()
+        .find(|p| p.phase == PickPhase::Stopping)
+        .unwrap();
+    assert!(
+        (27.0..28.0).contains(&stopping.t_s),
+        "stale detected at {}",
+        stopping.t_s
+    );
+    assert!(run.grasp.is_none());
+}
+
+#[test]
+fn marks_never_seen_is_a_calibration_fault_not_a_guess() {
+    let run = run_pick_in_process(
+        &with_camera_fault(experiment("experiment-1"), None, true),
+        2,
+    )
+    .unwrap();
+    assert_controlled_stop(&run, FaultCause::EffectorNotSeen);
+    assert!(
+        run.calibrations.is_empty(),
+        "no calibration may be reported"
+    );
+}
+
+#[test]
+fn a_part_out_of_reach_is_refused_with_a_controlled_stop() {
+    // The disc stands beyond the arm's reach: its near rim 0.75 m from the base
+    // axis, low (0.6 m below the shoulder), so the part never comes within reach.
+    let mut far = experiment("turning");
+    far.cell.disc_distance_m = [1.15, 1.2];
+    far.cell.disc_below_shoulder_m = [0.6, 0.62];
+    far.time_limit_s = 150.0;
+    let run = run_pick_in_process(&far, 3).unwrap();
+    assert!(
+        matches!(
+            run.result,
+            PickResult::Fault(
+                FaultCause::PartUnreachable
+                    | FaultCause::CalibrationFailed
+                    | FaultCause::EffectorNotSeen
+            )
+        ),
+        "{:?}",
+        run.result
+    );
+    assert_safe(&run);
+    assert!(
+        run.grasp.is_none(),
+        "never closed the gripper on an unreachable part"
+    );
+}
