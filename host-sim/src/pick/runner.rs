@@ -168,6 +168,13 @@ pub fn run_pick<L: ByteLink>(
                         ],
                     });
                 }
+                Message::Ack {
+                    kind: MessageKind::SensorSample,
+                    ..
+                } => bail!(
+                    "the controller acknowledged a sensor sample instead of answering with joint torques: \
+                     its application does not run the pick (firmware older than the pick application?)"
+                ),
                 Message::Ack { .. } => {}
                 Message::ErrorReport { code, detail } => {
                     bail!("the controller reported {code:?} ({detail}) at t = {now:.3} s")
