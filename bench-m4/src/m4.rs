@@ -6,8 +6,8 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
 use nalgebra::{UnitQuaternion, Vector3};
 use shared::control::{
-    orientation_error, solve_damped, AxisGains, CircleTrajectory, ControllerConfig, DampingConfig,
-    Joints, TaskGains, TaskReference, TaskSpaceController, TaskSpaceModel,
+    orientation_error, solve_damped, CircleTrajectory, ControllerConfig, DampingConfig, Joints,
+    TaskReference, TaskSpaceController, TaskSpaceModel,
 };
 use shared::planning::{solve_ik, IkConfig};
 use shared::robot::drive::SIMULATOR_COULOMB_WIDTH;
@@ -18,19 +18,7 @@ use super::timer;
 const CALLS: u32 = 200;
 
 fn config() -> Option<ControllerConfig<f32>> {
-    let gains = AxisGains::from_poles(40.0_f32, 1.0, 10.0).ok()?;
-    Some(ControllerConfig {
-        gains: TaskGains {
-            position: gains,
-            orientation: gains,
-        },
-        position_integral_limit: 0.005,
-        orientation_integral_limit: 0.02,
-        damping: DampingConfig {
-            manipulability_threshold: 0.01,
-            max_damping: 0.05,
-        },
-    })
+    ControllerConfig::puma560().ok()
 }
 
 #[entry]

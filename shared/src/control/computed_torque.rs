@@ -8,7 +8,7 @@
 //! anti-windup removes the steady error that model mismatch (unknown payload,
 //! friction) leaves under the paper's pure PD outer loop.
 
-use nalgebra::{Isometry3, RealField, Vector3, Vector6};
+use nalgebra::{convert, Isometry3, RealField, Vector3, Vector6};
 
 use super::dls::{solve_damped, DampingConfig};
 use super::error::{ControlError, ControlInput, ControlStage};
@@ -41,6 +41,26 @@ pub struct ControllerConfig<T> {
 }
 
 impl<T: RealField + Copy> ControllerConfig<T> {
+    /// The tuning the pick (and the Cortex-M4F benchmark) uses for the PUMA 560:
+    /// error poles at 40 rad/s, critically damped, an integrator at 10 rad/s for
+    /// the unknown payload; anti-windup at 5 mm s and 0.02 rad s; damping below
+    /// `|det J|` = 0.01.
+    pub fn puma560() -> Result<Self, ControlError> {
+        let gains = AxisGains::from_poles(convert(40.0), T::one(), convert(10.0))?;
+        Ok(Self {
+            gains: TaskGains {
+                position: gains,
+                orientation: gains,
+            },
+            position_integral_limit: convert(0.005),
+            orientation_integral_limit: convert(0.02),
+            damping: DampingConfig {
+                manipulability_threshold: convert(0.01),
+                max_damping: convert(0.05),
+            },
+        })
+    }
+
     /// Rejects negative or non-finite gains and limits.
     pub fn validate(&self) -> Result<(), ControlError> {
         let ok = |x: T| x.is_finite() && x >= T::zero();

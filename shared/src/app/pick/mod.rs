@@ -40,9 +40,7 @@ use super::joint_observer::JointObserver;
 use super::tool::{tool_point_base, TOOL_LENGTH_M};
 use super::vision::{observation_from_frame, VisionError};
 use crate::calibration::{CalibrationError, SelfCalibrator};
-use crate::control::{
-    AxisGains, ControllerConfig, DampingConfig, TaskGains, TaskReference, TaskSpaceController,
-};
+use crate::control::{ControllerConfig, TaskReference, TaskSpaceController};
 use crate::fusion::conveyor::wrap_pi;
 use crate::fusion::{ConveyorFilter, ConveyorState, LatchedSample, TriggerLatch};
 use crate::planning::{ArcLimits, ArcMove, ArcPoint, InterceptPlan, PlanError, TaskState};
@@ -229,23 +227,10 @@ pub struct PickController {
     counters: PickCounters,
 }
 
-/// Eq 23's gains for the pick: error poles at 40 rad/s, critically damped, an
-/// integrator at 10 rad/s for the unknown payload (and the part, once grasped).
+/// Eq 23's gains for the pick (see [`ControllerConfig::puma560`]).
 fn controller_config() -> Result<ControllerConfig<f32>, ConfigError> {
-    let gains = AxisGains::from_poles(40.0_f32, 1.0, 10.0).map_err(|_| ConfigError {
+    ControllerConfig::puma560().map_err(|_| ConfigError {
         field: "controller gains",
-    })?;
-    Ok(ControllerConfig {
-        gains: TaskGains {
-            position: gains,
-            orientation: gains,
-        },
-        position_integral_limit: 0.005,
-        orientation_integral_limit: 0.02,
-        damping: DampingConfig {
-            manipulability_threshold: 0.01,
-            max_damping: 0.05,
-        },
     })
 }
 
