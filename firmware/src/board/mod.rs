@@ -5,7 +5,10 @@
 //!
 //! - serial link to the vision computer / simulator: [`SerialLink`]
 //!   (`embedded-io-async` `Read + Write`);
-//! - joint encoders: [`JointEncoders`]; servo outputs: [`ServoOutputs`];
+//! - the plant: [`PlantIo`] (joint and conveyor encoders in; servo torques,
+//!   gripper and camera trigger out), and where control periods come from
+//!   ([`ControlSource`]);
+//! - a [`CycleCounter`] to measure the control cycle;
 //! - clock: the board's `embassy_time_driver::Driver` (the QEMU board's own
 //!   driver on the CMSDK dual timer; embassy-stm32's TIM12 driver on the
 //!   STM32F407), used through `embassy_time` by the application.
@@ -35,56 +38,26 @@ pub const JOINTS: usize = 6;
 /// Encoder counts per joint, joint 1 first.
 pub type JointCounts = [i32; JOINTS];
 
-/// Servo drive per joint as a signed duty fraction in `[-1, 1]`, joint 1 first.
-#[allow(
-    dead_code,
-    reason = "the servo path is driven by the control issue (Eq 23 torques to duties)"
-)]
-pub type JointDuties = [f32; JOINTS];
-
 /// What went wrong at the board level.
-#[allow(
-    dead_code,
-    reason = "the servo path is driven by the control issue (Eq 23 torques to duties)"
-)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum BoardError {
-    /// The device's peripherals are reserved but not driven yet on this board.
-    NotWired {
-        device: &'static str,
-        peripherals: &'static str,
-    },
     /// A joint's unwrapped encoder count left the protocol's `i32` range.
     EncoderOutOfRange { joint: usize },
-    /// A servo duty was NaN or infinite.
-    NonFiniteDuty { joint: usize },
-    /// A servo duty was outside `[-1, 1]`.
-    DutyOutOfRange { joint: usize, duty: f32 },
+    /// A servo torque was NaN or infinite.
+    NonFiniteTorque { joint: usize },
 }
 
 impl fmt::Display for BoardError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            BoardError::NotWired {
-                device,
-                peripherals,
-            } => write!(
-                f,
-                "{device}: peripherals {peripherals} are reserved but not wired on this board yet"
-            ),
             BoardError::EncoderOutOfRange { joint } => write!(
                 f,
                 "encoder count of joint {} is outside the i32 range",
                 joint + 1
             ),
-            BoardError::NonFiniteDuty { joint } => {
-                write!(f, "servo duty for joint {} is not finite", joint + 1)
+            BoardError::NonFiniteTorque { joint } => {
+                write!(f, "servo torque for joint {} is not finite", joint + 1)
             }
-            BoardError::DutyOutOfRange { joint, duty } => write!(
-                f,
-                "servo duty {duty} for joint {} is outside [-1, 1]",
-                joint + 1
-            ),
         }
     }
 }
@@ -100,51 +73,69 @@ pub trait SerialLink: embedded_io_async::Read + embedded_io_async::Write {}
 
 impl<T: embedded_io_async::Read + embedded_io_async::Write> SerialLink for T {}
 
-/// Incremental joint encoders.
-pub trait JointEncoders {
-    /// Latest count of every joint's encoder.
-    fn read_counts(&mut self) -> Result<JointCounts, BoardError>;
+/// Where the control loop's sensor samples come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
+pub enum ControlSource {
+    /// A fixed-rate ticker; the loop reads the board's own encoders
+    /// ([`PlantIo::read_sample`]) and drives its own outputs (real hardware).
+    Ticker,
+    /// Lock step with a simulated plant: every `SensorSample` frame from the
+    /// link is one control period, answered with an `ActuatorCommand` frame
+    /// (the emulated board). Deterministic whatever the emulator's speed.
+    LockStep,
 }
 
-/// Servo amplifier command outputs.
-pub trait ServoOutputs {
-    /// Drives every joint with `duties`; rejects the whole set (changing
-    /// nothing) if any duty is non-finite or outside `[-1, 1]`.
-    #[allow(
-        dead_code,
-        reason = "the servo path is driven by the control issue (Eq 23 torques to duties)"
-    )]
-    fn set_duties(&mut self, duties: JointDuties) -> Result<(), BoardError>;
+/// The plant side of the control loop: encoders in, servo amplifiers, gripper
+/// and camera trigger out. Called only from the control loop, once per period.
+pub trait PlantIo {
+    /// Joint encoder counts (unwrapped, joint 1 first) and the conveyor
+    /// encoder's raw hardware counter (it wraps; the controller unwraps it).
+    fn read_sample(&mut self) -> Result<(JointCounts, u32), BoardError>;
 
-    /// Stops driving all joints (zero duty).
+    /// Drives the servo amplifiers with the joint torques (N m), the gripper,
+    /// and pulses the camera trigger when `camera_trigger` is set. Rejects a
+    /// non-finite torque before any output changes (then the drives are off).
+    fn apply(
+        &mut self,
+        torque_nm: &[f32; JOINTS],
+        gripper_closed: bool,
+        camera_trigger: Option<u32>,
+    ) -> Result<(), BoardError>;
+
+    /// Stops driving all joints (zero torque, amplifiers disabled).
     fn disable(&mut self);
 }
 
-/// Checks a duty set before any output is touched.
-#[allow(
-    dead_code,
-    reason = "the servo path is driven by the control issue (Eq 23 torques to duties)"
-)]
-pub fn validate_duties(duties: &JointDuties) -> Result<(), BoardError> {
-    for (joint, &duty) in duties.iter().enumerate() {
-        if !duty.is_finite() {
-            return Err(BoardError::NonFiniteDuty { joint });
-        }
-        if !(-1.0..=1.0).contains(&duty) {
-            return Err(BoardError::DutyOutOfRange { joint, duty });
+/// A free-running counter for measuring the control cycle's cost: CPU cycles
+/// on real silicon (DWT), emulated instructions on QEMU with `-icount`.
+pub trait CycleCounter {
+    /// The counter now (wraps).
+    fn now(&self) -> u32;
+    /// Instructions (or cycles) per count.
+    fn scale(&self) -> u32;
+    /// What one unit of `now() * scale()` is: "cycles" or "instructions".
+    fn unit(&self) -> &'static str;
+}
+
+/// Checks a torque set before any output is touched.
+pub fn validate_torques(torque_nm: &[f32; JOINTS]) -> Result<(), BoardError> {
+    for (joint, &tau) in torque_nm.iter().enumerate() {
+        if !tau.is_finite() {
+            return Err(BoardError::NonFiniteTorque { joint });
         }
     }
     Ok(())
 }
 
 /// The board's devices, handed to the application once at boot.
-pub struct Board<S: SerialLink, E: JointEncoders, O: ServoOutputs> {
+pub struct Board<S: SerialLink, P: PlantIo, C: CycleCounter> {
     /// Reported to the host in `HelloAck`.
     pub name: &'static str,
     pub serial: S,
-    pub encoders: E,
-    pub servos: O,
+    pub plant: P,
+    pub cycles: C,
+    pub control_source: ControlSource,
 }
 
 /// The selected board's concrete devices.
-pub type ActiveBoard = Board<active::Serial, active::Encoders, active::Servos>;
+pub type ActiveBoard = Board<active::Serial, active::Plant, active::Cycles>;
