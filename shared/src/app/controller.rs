@@ -3,20 +3,28 @@
 //! pick ([`PickController`]). The firmware's tasks and the simulator's
 //! in-process link both drive this one type.
 
-use heapless::Vec;
+use heapless::{Deque, Vec};
 
 use super::link::LinkResponder;
-use super::pick::{PickController, MAX_TICK_MESSAGES};
-use crate::protocol::{DecodeError, ErrorCode, Message};
+use super::pick::cell::ConfigError;
+use super::pick::handoff::{ControlEvent, JobTicket, VisionNews, WorkItem};
+use super::pick::{PickController, PickParts, MAX_TICK_MESSAGES};
+use crate::protocol::{CellConfig, DecodeError, ErrorCode, Message};
 
 /// Replies one incoming message may produce.
 pub const MAX_REPLIES: usize = MAX_TICK_MESSAGES + 1;
 
-/// The controller application.
+/// Jobs requested and not yet run (one at a time is the pick's rule).
+const PENDING_JOBS: usize = 2;
+
+/// The controller application in one piece, for the in-process link: the
+/// pick's three parts called in the order the firmware's tasks call them.
 #[derive(Debug, Clone)]
 pub struct ControllerApp {
     link: LinkResponder,
-    pick: Option<PickController>,
+    pick: Option<PickParts>,
+    sessions: u32,
+    jobs: Deque<JobTicket, PENDING_JOBS>,
     reported_estimate: u32,
 }
 
@@ -25,6 +33,8 @@ impl ControllerApp {
         Self {
             link: LinkResponder::new(board_name, control_rate_hz),
             pick: None,
+            sessions: 0,
+            jobs: Deque::new(),
             reported_estimate: 0,
         }
     }
@@ -38,7 +48,7 @@ impl ControllerApp {
     }
 
     pub fn pick(&self) -> Option<&PickController> {
-        self.pick.as_ref()
+        self.pick.as_ref().map(|parts| &parts.control)
     }
 
     /// Answers one decoded message into `out`.
@@ -48,15 +58,25 @@ impl ControllerApp {
             (Message::SensorSample(sample), true) => {
                 self.link.count_received();
                 let mut extra: Vec<Message, MAX_TICK_MESSAGES> = Vec::new();
-                if let Some(pick) = self.pick.as_mut() {
-                    let command = pick.on_sensor_sample(sample, &mut extra);
+                if let Some(parts) = self.pick.as_mut() {
+                    let command = parts.control.on_sensor_sample(sample, &mut extra);
                     self.link
                         .set_control_ticks(self.link.status().control_ticks.saturating_add(1));
                     let _ = out.push(Message::ActuatorCommand(command));
-                    if let Some((serial, report)) = pick.calibration_report() {
-                        if serial != self.reported_estimate {
-                            self.reported_estimate = serial;
-                            let _ = out.push(Message::CalibrationReport(report));
+                    if let Some(report) =
+                        new_calibration_report(&parts.control, &mut self.reported_estimate)
+                    {
+                        let _ = out.push(report);
+                    }
+                    while let Some(event) = parts.control.pop_event() {
+                        match event {
+                            ControlEvent::Trigger(record) => parts.pairer.on_trigger(&record),
+                            ControlEvent::Job(ticket) => {
+                                if self.jobs.is_full() {
+                                    let _ = self.jobs.pop_front();
+                                }
+                                let _ = self.jobs.push_back(ticket);
+                            }
                         }
                     }
                 }
@@ -65,29 +85,38 @@ impl ControllerApp {
                 }
             }
             (Message::CameraFeatures(frame), true) => {
-                if let Some(pick) = self.pick.as_mut() {
+                if let Some(parts) = self.pick.as_mut() {
                     // A frame that cannot be paired is counted by the pick, not an error of the link.
-                    let _ = pick.on_camera_frame(frame);
+                    match parts.pairer.on_frame(frame) {
+                        Ok(paired) => {
+                            parts.control.on_news(&paired.news);
+                            if let Some(observation) = paired.observation {
+                                let item = WorkItem::Observation(observation);
+                                if let Some(news) = parts.worker.process(&item) {
+                                    parts.control.on_news(&news);
+                                }
+                            }
+                        }
+                        Err(_) => parts.control.on_news(&VisionNews::Unpaired),
+                    }
                 }
                 if let Some(reply) = self.link.handle(message) {
                     let _ = out.push(reply);
                 }
             }
             (Message::Configure(config), _) if self.link.session_open() => {
-                match PickController::new(config) {
-                    Ok(pick) => {
-                        self.pick = Some(pick);
+                match configure(config, &mut self.sessions) {
+                    Ok(parts) => {
+                        self.pick = Some(parts);
+                        self.jobs.clear();
                         self.reported_estimate = 0;
                         if let Some(reply) = self.link.handle(message) {
                             let _ = out.push(reply);
                         }
                     }
-                    Err(error) => {
+                    Err(report) => {
                         self.link.count_received();
-                        let _ = out.push(Message::ErrorReport {
-                            code: ErrorCode::BadConfiguration,
-                            detail: config_field_index(error.field),
-                        });
+                        let _ = out.push(report);
                     }
                 }
             }
@@ -107,10 +136,36 @@ impl ControllerApp {
     /// Background work (self-calibration, planning): the firmware's low-priority
     /// task, or the simulator after each message.
     pub fn run_background(&mut self) {
-        if let Some(pick) = self.pick.as_mut() {
-            pick.run_background();
+        let Some(parts) = self.pick.as_mut() else {
+            return;
+        };
+        while let Some(ticket) = self.jobs.pop_front() {
+            if let Some(news) = parts.worker.process(&WorkItem::Job(ticket)) {
+                parts.control.on_news(&news);
+            }
         }
     }
+}
+
+/// The pick's parts for a new cell configuration (a new session number), or
+/// the error report that names the bad field.
+pub fn configure(config: &CellConfig, sessions: &mut u32) -> Result<PickParts, Message> {
+    *sessions = sessions.wrapping_add(1);
+    PickParts::new(config, *sessions).map_err(|error: ConfigError| Message::ErrorReport {
+        code: ErrorCode::BadConfiguration,
+        detail: config_field_index(error.field),
+    })
+}
+
+/// A calibration report when the control loop holds an estimate newer than
+/// the last one reported.
+pub fn new_calibration_report(control: &PickController, reported: &mut u32) -> Option<Message> {
+    let (serial, report) = control.calibration_report()?;
+    if serial == *reported {
+        return None;
+    }
+    *reported = serial;
+    Some(Message::CalibrationReport(report))
 }
 
 /// `CellConfig`'s fields in declaration order, for the error report's detail.

@@ -20,4 +20,4 @@ pub use conveyor::{ConveyorFilter, ConveyorState};
 pub use encoder::{CounterWidth, EncoderUnwrapper};
 pub use error::FusionError;
 pub use part_motion::{part_motion_in_base, PartMotion};
-pub use trigger::{LatchedSample, TriggerLatch};
+pub use trigger::{LatchedSample, TriggerLatch, Triggered};

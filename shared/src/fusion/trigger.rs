@@ -20,20 +20,31 @@ pub struct LatchedSample {
     pub joint_q: [f32; 6],
 }
 
+/// A record kept per trigger: the latched values, maybe with more context.
+pub trait Triggered: Copy {
+    fn trigger_id(&self) -> u32;
+}
+
+impl Triggered for LatchedSample {
+    fn trigger_id(&self) -> u32 {
+        self.trigger_id
+    }
+}
+
 /// The last `N` triggers awaiting their frames.
 #[derive(Debug, Clone)]
-pub struct TriggerLatch<const N: usize> {
-    slots: [Option<LatchedSample>; N],
+pub struct TriggerLatch<const N: usize, T: Triggered = LatchedSample> {
+    slots: [Option<T>; N],
     next: usize,
 }
 
-impl<const N: usize> Default for TriggerLatch<N> {
+impl<const N: usize, T: Triggered> Default for TriggerLatch<N, T> {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl<const N: usize> TriggerLatch<N> {
+impl<const N: usize, T: Triggered> TriggerLatch<N, T> {
     pub const fn new() -> Self {
         Self {
             slots: [None; N],
@@ -42,7 +53,7 @@ impl<const N: usize> TriggerLatch<N> {
     }
 
     /// Records a trigger, overwriting the oldest pending one when full.
-    pub fn latch(&mut self, sample: LatchedSample) {
+    pub fn latch(&mut self, sample: T) {
         if let Some(slot) = self.slots.get_mut(self.next) {
             *slot = Some(sample);
         }
@@ -51,10 +62,10 @@ impl<const N: usize> TriggerLatch<N> {
 
     /// The values latched for `trigger_id`, removed from the latch; `None` when the
     /// trigger is unknown or stale.
-    pub fn take(&mut self, trigger_id: u32) -> Option<LatchedSample> {
+    pub fn take(&mut self, trigger_id: u32) -> Option<T> {
         self.slots
             .iter_mut()
-            .find(|slot| matches!(slot, Some(s) if s.trigger_id == trigger_id))
+            .find(|slot| matches!(slot, Some(s) if s.trigger_id() == trigger_id))
             .and_then(Option::take)
     }
 

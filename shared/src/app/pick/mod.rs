@@ -22,31 +22,36 @@
 
 pub mod cell;
 pub mod estimate;
+pub mod handoff;
 pub mod jobs;
 pub mod motion;
+pub mod pairing;
 pub mod settings;
+pub mod worker;
 
-use heapless::Vec;
+use heapless::{Deque, Vec};
 use nalgebra::{Vector3, Vector6};
 
 use self::cell::{Cell, ConfigError};
 use self::estimate::CellEstimate;
-use self::jobs::{
-    calibration_poses, plan_part_intercept, yaw_at_azimuth, ConveyorSnapshot, MAX_CALIBRATION_POSES,
+use self::handoff::{
+    ControlEvent, JobOutcome, JobRequest, JobResult, JobTicket, TriggerRecord, VisionNews,
 };
-use self::motion::{height_profile, Motion, Prediction};
+use self::jobs::{yaw_at_azimuth, ConveyorSnapshot, MAX_CALIBRATION_POSES};
+use self::motion::{height_profile, Motion};
+use self::pairing::FramePairer;
 use self::settings::PickSettings;
+use self::worker::PickWorker;
 use super::joint_observer::JointObserver;
 use super::tool::{tool_point_base, TOOL_LENGTH_M};
-use super::vision::{observation_from_frame, VisionError};
-use crate::calibration::{CalibrationError, SelfCalibrator};
+use crate::calibration::SelfCalibrator;
 use crate::control::{ControllerConfig, TaskReference, TaskSpaceController};
 use crate::fusion::conveyor::wrap_pi;
-use crate::fusion::{ConveyorFilter, ConveyorState, LatchedSample, TriggerLatch};
+use crate::fusion::{ConveyorFilter, ConveyorState, LatchedSample};
 use crate::planning::{ArcLimits, ArcMove, ArcPoint, InterceptPlan, PlanError, TaskState};
 use crate::protocol::{
-    ActuatorCommand, CameraFeatureFrame, CellConfig, FaultCause, GripperCommand, Message,
-    PickPhase, PickTelemetry, SensorSample,
+    ActuatorCommand, CellConfig, FaultCause, GripperCommand, Message, PickPhase, PickTelemetry,
+    SensorSample,
 };
 use crate::robot::{DriveOptions, JointVector, Puma560, SIMULATOR_COULOMB_WIDTH};
 
@@ -54,8 +59,9 @@ use crate::robot::{DriveOptions, JointVector, Puma560, SIMULATOR_COULOMB_WIDTH};
 /// 13 KiB), the same in the firmware and in the simulator.
 pub type PickCalibrator = SelfCalibrator<96, 64>;
 
-/// Triggers awaiting their frames (frames later than 8 periods are stale).
-const PENDING_TRIGGERS: usize = 8;
+/// Events one control tick may leave for the pairer and the worker (a trigger
+/// and a job request at most; room for one tick not drained).
+pub const MAX_CONTROL_EVENTS: usize = 4;
 
 /// Messages one control tick may emit besides its actuator command.
 pub const MAX_TICK_MESSAGES: usize = 3;
@@ -144,31 +150,12 @@ impl Step {
     }
 }
 
-/// Background work the control loop has asked for.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum JobRequest {
-    Estimate {
-        preliminary: bool,
-    },
-    Plan {
-        start: TaskState<f32>,
-        q_start: JointVector<f32>,
-        conveyor: ConveyorSnapshot,
-    },
-}
-
-/// Its result (one lives at a time, so the size difference does not matter).
-#[derive(Debug, Clone, PartialEq)]
-#[allow(clippy::large_enum_variant)]
-enum JobOutcome {
-    Estimate(Result<(CellEstimate, Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>), FaultCause>),
-    Plan(Result<(InterceptPlan<f32>, Prediction), PlanError>),
-}
-
-/// A job in flight: requested, maybe computed, applied at `apply_at_s`.
+/// A job in flight: requested, maybe computed, applied at `apply_at_s` (a
+/// fixed delay after the request, so the run does not depend on how fast the
+/// worker is, as long as it is done by then).
 #[derive(Debug, Clone, PartialEq)]
 struct Job {
-    request: JobRequest,
+    job_id: u32,
     outcome: Option<JobOutcome>,
     apply_at_s: f32,
 }
@@ -178,25 +165,31 @@ struct Job {
 pub struct PickCounters {
     pub frames_paired: u32,
     pub frames_unpaired: u32,
-    /// Paired frames the calibrator refused (invalid detections, time going back).
+    /// Paired frames refused (bad labels) or that the calibrator refused
+    /// (invalid detections, time going back).
     pub frames_refused: u32,
+    /// Job results that came after their due time (the worker was too slow).
+    pub late_results: u32,
     pub saturated_ticks: u32,
     pub effector_sightings: u32,
 }
 
-/// The controller application of the pick.
+/// The pick's control loop: fusion (Eq 1), the state machine and Eq 23, once
+/// per sensor sample. Its vision and background work are the [`FramePairer`]'s
+/// and the [`PickWorker`]'s, reached through [`ControlEvent`]s and
+/// [`VisionNews`].
 #[derive(Debug, Clone)]
 pub struct PickController {
     cell: Cell,
     settings: PickSettings,
     model: Puma560<f32>,
-    kinematics: Puma560<f64>,
     controller: TaskSpaceController<f32>,
     observer: JointObserver,
     conveyor: ConveyorFilter<f32>,
     conveyor_state: Option<ConveyorState<f32>>,
-    latch: TriggerLatch<PENDING_TRIGGERS>,
-    calibrator: PickCalibrator,
+    session: u32,
+    next_job_id: u32,
+    outbox: Deque<ControlEvent, MAX_CONTROL_EVENTS>,
     start_time_us: Option<u64>,
     last_time_us: u64,
     now_s: f32,
@@ -234,13 +227,26 @@ fn controller_config() -> Result<ControllerConfig<f32>, ConfigError> {
     })
 }
 
-impl PickController {
-    /// A controller for the cell `config`, with the pick's default settings.
-    pub fn new(config: &CellConfig) -> Result<Self, ConfigError> {
-        Self::with_settings(config, PickSettings::default())
+/// The pick's three parts for one cell configuration.
+#[derive(Debug, Clone)]
+pub struct PickParts {
+    pub control: PickController,
+    pub pairer: FramePairer,
+    pub worker: PickWorker,
+}
+
+impl PickParts {
+    /// The parts for the cell `config`, with the pick's default settings.
+    /// `session` tells this configuration's job results from an older one's.
+    pub fn new(config: &CellConfig, session: u32) -> Result<Self, ConfigError> {
+        Self::with_settings(config, PickSettings::default(), session)
     }
 
-    pub fn with_settings(config: &CellConfig, settings: PickSettings) -> Result<Self, ConfigError> {
+    pub fn with_settings(
+        config: &CellConfig,
+        settings: PickSettings,
+        session: u32,
+    ) -> Result<Self, ConfigError> {
         let cell = Cell::new(config)?;
         let calibrator = PickCalibrator::new(&cell.log_header(), cell.calibration_config())
             .map_err(|_| ConfigError {
@@ -265,17 +271,22 @@ impl PickController {
                 field: "controller gains",
             })?;
         let rest = TaskState::at_rest(Vector3::zeros(), 0.0);
-        Ok(Self {
+        let pairer = FramePairer::new(
+            config.conveyor_counts_per_rev,
+            usize::from(config.part_feature_count),
+        );
+        let worker = PickWorker::new(cell.clone(), settings, model.clone(), calibrator);
+        let control = PickController {
             cell,
             settings,
             model,
-            kinematics: Puma560::new(),
             controller,
             observer: JointObserver::new(150.0, 0.05),
             conveyor,
             conveyor_state: None,
-            latch: TriggerLatch::new(),
-            calibrator,
+            session,
+            next_job_id: 1,
+            outbox: Deque::new(),
             start_time_us: None,
             last_time_us: 0,
             now_s: 0.0,
@@ -307,8 +318,16 @@ impl PickController {
             tool_measured: Vector3::zeros(),
             tool_yaw_measured: 0.0,
             counters: PickCounters::default(),
+        };
+        Ok(Self {
+            control,
+            pairer,
+            worker,
         })
     }
+}
+
+impl PickController {
 
     pub fn phase(&self) -> PickPhase {
         self.step.phase()
@@ -331,130 +350,66 @@ impl PickController {
         self.now_s
     }
 
-    /// A camera frame has arrived: pair it with its trigger and give it to the
-    /// calibrator (the low-priority side's work).
-    pub fn on_camera_frame(&mut self, frame: &CameraFeatureFrame) -> Result<(), VisionError> {
-        let Some(latched) = self.latch.take(frame.trigger_id) else {
-            self.counters.frames_unpaired = self.counters.frames_unpaired.saturating_add(1);
-            return Err(VisionError::UnknownTrigger {
-                trigger_id: frame.trigger_id,
-            });
-        };
-        self.counters.frames_paired = self.counters.frames_paired.saturating_add(1);
-        self.last_paired_s = self.now_s;
-        if !self.step.part_on_disc() || matches!(self.step, Step::Stopping | Step::Faulted) {
-            return Ok(());
-        }
-        let observation = self.observation(frame, &latched)?;
-        let sighting = observation.effector.map(|e| e.base_m[0]);
-        match self.calibrator.push(&observation) {
-            Ok(()) if sighting.is_some() => {
-                self.counters.effector_sightings =
-                    self.counters.effector_sightings.saturating_add(1);
-                if let Some([x, y, _]) = sighting {
-                    let norm = libm::hypot(x, y);
-                    if norm > 1e-6 {
-                        let [sx, sy] = self.sighting_direction;
-                        self.sighting_direction = [sx + (x / norm) as f32, sy + (y / norm) as f32];
-                    }
+    /// News from the pairer or the worker; the firmware delivers it before
+    /// the next sensor sample, the simulator at once (the same thing: nothing
+    /// here depends on the time between).
+    pub fn on_news(&mut self, news: &VisionNews) {
+        match news {
+            VisionNews::Paired { sighting_xy } => {
+                self.counters.frames_paired = self.counters.frames_paired.saturating_add(1);
+                self.last_paired_s = self.now_s;
+                if let Some([x, y]) = sighting_xy {
+                    self.counters.effector_sightings =
+                        self.counters.effector_sightings.saturating_add(1);
+                    let [sx, sy] = self.sighting_direction;
+                    self.sighting_direction = [sx + x, sy + y];
                 }
             }
-            Ok(()) => {}
-            Err(_) => self.counters.frames_refused = self.counters.frames_refused.saturating_add(1),
+            VisionNews::Unpaired => {
+                self.counters.frames_unpaired = self.counters.frames_unpaired.saturating_add(1);
+            }
+            VisionNews::Refused => {
+                self.counters.frames_refused = self.counters.frames_refused.saturating_add(1);
+            }
+            VisionNews::Result(result) => self.on_result(result),
         }
-        Ok(())
     }
 
-    fn observation(
-        &self,
-        frame: &CameraFeatureFrame,
-        latched: &LatchedSample,
-    ) -> Result<crate::observation::ObservationFrame, VisionError> {
-        let start = self.start_time_us.unwrap_or(latched.time_us);
-        let t_s = latched.time_us.saturating_sub(start) as f64 * 1e-6;
-        let theta = self.conveyor.theta_of_counts(latched.conveyor_counts);
-        observation_from_frame(
-            frame,
-            latched,
-            t_s,
-            theta,
-            usize::from(self.cell.config.part_feature_count),
-            &self.kinematics,
-        )
-    }
-
-    /// Runs the pending background job (estimate or plan), if any. The firmware
-    /// calls this from its low-priority task; the simulator after every message.
-    pub fn run_background(&mut self) {
+    fn on_result(&mut self, result: &JobResult) {
+        if result.session != self.session {
+            return;
+        }
         let Some(job) = self.job.as_mut() else {
             return;
         };
-        if job.outcome.is_some() {
+        if job.job_id != result.job_id || job.outcome.is_some() {
             return;
         }
-        let request = job.request;
-        let outcome = match request {
-            JobRequest::Estimate { preliminary } => {
-                JobOutcome::Estimate(self.estimate_job(preliminary))
-            }
-            JobRequest::Plan {
-                start,
-                q_start,
-                conveyor,
-            } => JobOutcome::Plan(match self.estimate.as_ref() {
-                Some(estimate) => plan_part_intercept(
-                    &start,
-                    &q_start,
-                    estimate,
-                    &conveyor,
-                    &self.settings,
-                    &self.model,
-                ),
-                None => Err(PlanError::NoFeasibleIntercept),
-            }),
-        };
-        if let Some(job) = self.job.as_mut() {
-            job.outcome = Some(outcome);
+        if self.now_s > job.apply_at_s {
+            self.counters.late_results = self.counters.late_results.saturating_add(1);
         }
+        job.outcome = Some(result.outcome.clone());
     }
 
-    fn estimate_job(
-        &mut self,
-        preliminary: bool,
-    ) -> Result<(CellEstimate, Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>), FaultCause> {
-        let time_us = self.last_time_us;
-        let (result, sigma) = self
-            .calibrator
-            .estimate_with_uncertainty()
-            .map_err(|error| match error {
-                CalibrationError::TooFewObservations {
-                    what: "end-effector sightings",
-                    ..
-                } => FaultCause::EffectorNotSeen,
-                _ => FaultCause::CalibrationFailed,
-            })?;
-        let estimate = CellEstimate::new(&result, &sigma, time_us);
-        let report = &estimate.report;
-        let trusted = report.sigma_part_m.is_finite()
-            && report.sigma_base_m.is_finite()
-            && (preliminary || report.sigma_part_m <= self.settings.max_part_sigma_m)
-            && (preliminary || report.sigma_base_m <= self.settings.max_base_sigma_m);
-        if !trusted {
-            return Err(FaultCause::CalibrationFailed);
-        }
-        let poses = if preliminary {
-            calibration_poses(
-                &estimate,
-                &self.cell.log_header().camera,
-                &self.start_pose,
-                &self.observer.q(),
-                &self.settings,
-                &self.model,
-            )
-        } else {
-            Vec::new()
+    /// The next event for the pairer or the worker, oldest first. Drain them
+    /// all after every sensor sample.
+    pub fn pop_event(&mut self) -> Option<ControlEvent> {
+        self.outbox.pop_front()
+    }
+
+    /// True when the sample at `time_us` is due to apply a job's result that
+    /// has not come yet. A lock-step caller (the emulated board) waits for the
+    /// worker before such a sample, so the run is the same at any speed; a
+    /// real-time caller does not, and the result is applied late.
+    pub fn awaits_result(&self, time_us: u64) -> bool {
+        let Some(job) = self.job.as_ref() else {
+            return false;
         };
-        Ok((estimate, poses))
+        let now_s = match self.start_time_us {
+            Some(start) => time_us.saturating_sub(start) as f32 * 1e-6,
+            None => 0.0,
+        };
+        job.outcome.is_none() && now_s >= job.apply_at_s
     }
 
     /// One control period: the sensor sample in, the actuator command (and any
@@ -581,12 +536,18 @@ impl PickController {
         for (slot, value) in joint_q.iter_mut().zip(q.iter()) {
             *slot = *value;
         }
-        self.latch.latch(LatchedSample {
-            trigger_id,
-            conveyor_counts: self.conveyor.total_counts(),
-            time_us: sample.time_us,
-            joint_q,
-        });
+        let record = TriggerRecord {
+            latched: LatchedSample {
+                trigger_id,
+                conveyor_counts: self.conveyor.total_counts(),
+                time_us: sample.time_us,
+                joint_q,
+            },
+            start_time_us: self.start_time_us.unwrap_or(sample.time_us),
+            feeds_calibrator: self.step.part_on_disc()
+                && !matches!(self.step, Step::Stopping | Step::Faulted),
+        };
+        self.post(ControlEvent::Trigger(record));
         Some(trigger_id)
     }
 
@@ -645,11 +606,28 @@ impl PickController {
     }
 
     fn request(&mut self, request: JobRequest, budget_s: f32) {
+        let job_id = self.next_job_id;
+        self.next_job_id = self.next_job_id.wrapping_add(1);
         self.job = Some(Job {
-            request,
+            job_id,
             outcome: None,
             apply_at_s: self.now_s + budget_s,
         });
+        self.post(ControlEvent::Job(JobTicket {
+            session: self.session,
+            job_id,
+            request,
+        }));
+    }
+
+    /// Leaves an event for the caller to hand on. The outbox is drained after
+    /// every tick and one tick posts two events at most, so it never overflows;
+    /// if a caller forgot to drain it, the oldest event is the one dropped.
+    fn post(&mut self, event: ControlEvent) {
+        if self.outbox.is_full() {
+            let _ = self.outbox.pop_front();
+        }
+        let _ = self.outbox.push_back(event);
     }
 
     /// The job's outcome once its delay has passed.
@@ -711,10 +689,13 @@ impl PickController {
             Step::EstimatePreliminary | Step::EstimateFinal => {
                 self.hold_here();
                 let preliminary = step == Step::EstimatePreliminary;
-                self.request(
-                    JobRequest::Estimate { preliminary },
-                    settings.estimate_budget_s,
-                );
+                let request = JobRequest::Estimate {
+                    preliminary,
+                    time_us: self.last_time_us,
+                    start_pose: self.start_pose,
+                    q_now: self.observer.q(),
+                };
+                self.request(request, settings.estimate_budget_s);
                 return;
             }
             Step::CalibrateMove(i) => match self.poses.get(usize::from(i)).copied() {
@@ -926,6 +907,11 @@ impl PickController {
             return;
         };
         let steady = state.alpha.abs() <= self.settings.steady_alpha_rad_s2;
+        let Some(estimate) = self.estimate else {
+            // Locate is only entered with an estimate; never plan without one.
+            self.raise(FaultCause::CalibrationFailed);
+            return;
+        };
         if self.job.is_none() && steady && self.now_s >= self.next_plan_attempt_s {
             let start = TaskState::at_rest(self.reference.position, self.reference.yaw);
             let request = JobRequest::Plan {
@@ -936,6 +922,7 @@ impl PickController {
                     omega: state.omega,
                     lead_s: self.settings.plan_budget_s,
                 },
+                estimate,
             };
             self.request(request, self.settings.plan_budget_s);
         }

@@ -1,0 +1,116 @@
+//! What the pick's three parts hand each other. The control loop
+//! ([`super::PickController`], high priority) never waits for the others: it
+//! latches the encoders at each camera trigger and asks for background jobs; the
+//! frame pairer ([`super::FramePairer`], on the link) turns each camera frame
+//! into an observation; the worker ([`super::PickWorker`], low priority) feeds
+//! the calibrator and runs the jobs. The firmware passes these through
+//! critical-section channels between its tasks; the in-process simulator calls
+//! the same three parts in the same order, so both run the same pick.
+//!
+//! Order is what makes a run deterministic: the worker sees observations and
+//! job requests in the order they were made, and a job's result is applied by
+//! the control loop at a fixed time after the request (its budget), never
+//! "when it happens to arrive".
+
+use heapless::Vec;
+
+use super::estimate::CellEstimate;
+use super::jobs::{ConveyorSnapshot, MAX_CALIBRATION_POSES};
+use super::motion::Prediction;
+use crate::fusion::LatchedSample;
+use crate::observation::ObservationFrame;
+use crate::planning::{ArcPoint, InterceptPlan, PlanError, TaskState};
+use crate::protocol::FaultCause;
+use crate::robot::JointVector;
+
+/// Background work the control loop asks for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum JobRequest {
+    /// Self-calibrate from what the calibrator holds (Sections 2 and 3); a
+    /// preliminary estimate also chooses the poses to show the marks at.
+    Estimate {
+        preliminary: bool,
+        /// Controller time of the request (stamped on the estimate).
+        time_us: u64,
+        /// Where the arm started (the poses keep its wrist).
+        start_pose: ArcPoint<f32>,
+        /// Joint angles now (the poses' IK seed).
+        q_now: JointVector<f32>,
+    },
+    /// Plan the intercept of the part (Eq 1 predicted forward).
+    Plan {
+        start: TaskState<f32>,
+        q_start: JointVector<f32>,
+        conveyor: ConveyorSnapshot,
+        estimate: CellEstimate,
+    },
+}
+
+/// A job with the identity its result must come back with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JobTicket {
+    /// Which configuration (session) asked; results of an older one are ignored.
+    pub session: u32,
+    /// Which request of that session; a cancelled job's late result is ignored.
+    pub job_id: u32,
+    pub request: JobRequest,
+}
+
+/// What a job produced.
+#[derive(Debug, Clone, PartialEq)]
+#[allow(clippy::large_enum_variant)]
+pub enum JobOutcome {
+    Estimate(Result<(CellEstimate, Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>), FaultCause>),
+    Plan(Result<(InterceptPlan<f32>, Prediction), PlanError>),
+}
+
+/// A job's result, with its ticket's identity.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JobResult {
+    pub session: u32,
+    pub job_id: u32,
+    pub outcome: JobOutcome,
+}
+
+/// From the control loop to the frame pairer: the encoders at a camera trigger.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TriggerRecord {
+    pub latched: LatchedSample,
+    /// Controller time of the first sensor sample (observation time zero).
+    pub start_time_us: u64,
+    /// The part still lies on the disc at the trigger, so the frame may feed
+    /// the calibrator (after the grasp it would show a part off the disc).
+    pub feeds_calibrator: bool,
+}
+
+/// From the control loop, for the other two parts (in this order).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ControlEvent {
+    /// For the frame pairer.
+    Trigger(TriggerRecord),
+    /// For the worker.
+    Job(JobTicket),
+}
+
+/// The worker's input queue, in order.
+#[derive(Debug, Clone, PartialEq)]
+#[allow(clippy::large_enum_variant)]
+pub enum WorkItem {
+    Observation(ObservationFrame),
+    Job(JobTicket),
+}
+
+/// From the pairer and the worker back to the control loop.
+#[derive(Debug, Clone, PartialEq)]
+#[allow(clippy::large_enum_variant)]
+pub enum VisionNews {
+    /// A frame was paired with its trigger; `sighting_xy` is the unit
+    /// direction (base frame, horizontal) of the effector mark it saw, if any.
+    Paired { sighting_xy: Option<[f32; 2]> },
+    /// A frame matched no pending trigger (late, repeated or unknown).
+    Unpaired,
+    /// A paired frame the calibrator refused (bad detections, time going back).
+    Refused,
+    /// A job finished.
+    Result(JobResult),
+}

@@ -1,0 +1,101 @@
+//! The frame pairer: the quick, link-side part of vision. It keeps the encoder
+//! values the control loop latched at each camera trigger and pairs every
+//! arriving frame with them by trigger id, so the frame's conveyor angle is the
+//! one at exposure however late the frame arrives (Eq 1's theta without the
+//! vision latency), and the effector marks are placed by the joint angles at
+//! exposure (Section 3.2).
+
+use super::handoff::{TriggerRecord, VisionNews};
+use crate::app::vision::{observation_from_frame, VisionError};
+use crate::fusion::{TriggerLatch, Triggered};
+use crate::observation::ObservationFrame;
+use crate::protocol::CameraFeatureFrame;
+use crate::robot::Puma560;
+
+/// Triggers awaiting their frames (frames later than 8 periods are stale).
+pub const PENDING_TRIGGERS: usize = 8;
+
+impl Triggered for TriggerRecord {
+    fn trigger_id(&self) -> u32 {
+        self.latched.trigger_id
+    }
+}
+
+/// Pairs camera frames with their triggers.
+#[derive(Debug, Clone)]
+pub struct FramePairer {
+    latch: TriggerLatch<PENDING_TRIGGERS, TriggerRecord>,
+    kinematics: Puma560<f64>,
+    conveyor_counts_per_rev: u32,
+    part_feature_count: usize,
+}
+
+/// A paired frame: the news for the control loop, and the observation for the
+/// worker when the frame may feed the calibrator.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Paired {
+    pub news: VisionNews,
+    pub observation: Option<ObservationFrame>,
+}
+
+impl FramePairer {
+    pub fn new(conveyor_counts_per_rev: u32, part_feature_count: usize) -> Self {
+        Self {
+            latch: TriggerLatch::new(),
+            kinematics: Puma560::new(),
+            conveyor_counts_per_rev: conveyor_counts_per_rev.max(1),
+            part_feature_count,
+        }
+    }
+
+    /// The control loop fired the camera: remember the encoders.
+    pub fn on_trigger(&mut self, record: &TriggerRecord) {
+        self.latch.latch(*record);
+    }
+
+    /// A camera frame arrived: pair it, and build its observation. A frame
+    /// that pairs but carries bad labels (twice the same, out of range) is
+    /// refused: news `Refused`, no observation. The error is an unknown trigger.
+    pub fn on_frame(&mut self, frame: &CameraFeatureFrame) -> Result<Paired, VisionError> {
+        let trigger_id = frame.trigger_id;
+        let Some(record) = self.latch.take(trigger_id) else {
+            return Err(VisionError::UnknownTrigger { trigger_id });
+        };
+        let latched = record.latched;
+        if !record.feeds_calibrator {
+            return Ok(Paired {
+                news: VisionNews::Paired { sighting_xy: None },
+                observation: None,
+            });
+        }
+        let t_s = latched.time_us.saturating_sub(record.start_time_us) as f64 * 1e-6;
+        let theta = latched.conveyor_counts as f64 * core::f64::consts::TAU
+            / f64::from(self.conveyor_counts_per_rev);
+        let observation = observation_from_frame(
+            frame,
+            &latched,
+            t_s,
+            theta,
+            self.part_feature_count,
+            &self.kinematics,
+        );
+        let observation = match observation {
+            Ok(observation) => observation,
+            Err(_) => {
+                return Ok(Paired {
+                    news: VisionNews::Refused,
+                    observation: None,
+                })
+            }
+        };
+        let sighting_xy = observation.effector.and_then(|e| {
+            let [x, y, _] = e.base_m[0];
+            let norm = libm::hypot(x, y);
+            (norm > 1e-6).then(|| [(x / norm) as f32, (y / norm) as f32])
+        });
+        Ok(Paired {
+            news: VisionNews::Paired { sighting_xy },
+            observation: Some(observation),
+        })
+    }
+}

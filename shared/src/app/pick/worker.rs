@@ -1,0 +1,127 @@
+//! The worker: the pick's slow, low-priority part. It owns the self-calibrator
+//! (Sections 2 and 3: the ellipse, the virtual rotation, Eqs 3 to 8 and 10 to
+//! 15) and runs the jobs the control loop asks for: an estimate (then the poses
+//! to show the marks at) or an intercept plan. It never touches the arm; the
+//! control loop applies a result at the job's fixed due time.
+
+use heapless::Vec;
+
+use super::cell::Cell;
+use super::estimate::CellEstimate;
+use super::handoff::{JobOutcome, JobRequest, JobResult, JobTicket, VisionNews, WorkItem};
+use super::jobs::{calibration_poses, plan_part_intercept, MAX_CALIBRATION_POSES};
+use super::settings::PickSettings;
+use super::PickCalibrator;
+use crate::calibration::CalibrationError;
+use crate::planning::ArcPoint;
+use crate::protocol::FaultCause;
+use crate::robot::Puma560;
+
+/// The calibrator and the job runner.
+#[derive(Debug, Clone)]
+pub struct PickWorker {
+    cell: Cell,
+    settings: PickSettings,
+    model: Puma560<f32>,
+    calibrator: PickCalibrator,
+}
+
+impl PickWorker {
+    pub(super) fn new(
+        cell: Cell,
+        settings: PickSettings,
+        model: Puma560<f32>,
+        calibrator: PickCalibrator,
+    ) -> Self {
+        Self {
+            cell,
+            settings,
+            model,
+            calibrator,
+        }
+    }
+
+    /// Takes one item of its queue: an observation goes to the calibrator (a
+    /// refused one is reported), a job runs to completion.
+    pub fn process(&mut self, item: &WorkItem) -> Option<VisionNews> {
+        match item {
+            WorkItem::Observation(observation) => match self.calibrator.push(observation) {
+                Ok(()) => None,
+                Err(_) => Some(VisionNews::Refused),
+            },
+            WorkItem::Job(ticket) => Some(VisionNews::Result(self.run(ticket))),
+        }
+    }
+
+    /// Runs one job.
+    pub fn run(&mut self, ticket: &JobTicket) -> JobResult {
+        let outcome = match ticket.request {
+            JobRequest::Estimate {
+                preliminary,
+                time_us,
+                start_pose,
+                q_now,
+            } => JobOutcome::Estimate(self.estimate(preliminary, time_us, &start_pose, &q_now)),
+            JobRequest::Plan {
+                start,
+                q_start,
+                conveyor,
+                estimate,
+            } => JobOutcome::Plan(plan_part_intercept(
+                &start,
+                &q_start,
+                &estimate,
+                &conveyor,
+                &self.settings,
+                &self.model,
+            )),
+        };
+        JobResult {
+            session: ticket.session,
+            job_id: ticket.job_id,
+            outcome,
+        }
+    }
+
+    /// Self-calibrates, refusing an estimate the pick cannot trust.
+    fn estimate(
+        &mut self,
+        preliminary: bool,
+        time_us: u64,
+        start_pose: &ArcPoint<f32>,
+        q_now: &crate::robot::JointVector<f32>,
+    ) -> Result<(CellEstimate, Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>), FaultCause> {
+        let (result, sigma) = self
+            .calibrator
+            .estimate_with_uncertainty()
+            .map_err(|error| match error {
+                CalibrationError::TooFewObservations {
+                    what: "end-effector sightings",
+                    ..
+                } => FaultCause::EffectorNotSeen,
+                _ => FaultCause::CalibrationFailed,
+            })?;
+        let estimate = CellEstimate::new(&result, &sigma, time_us);
+        let report = &estimate.report;
+        let trusted = report.sigma_part_m.is_finite()
+            && report.sigma_base_m.is_finite()
+            && (preliminary || report.sigma_part_m <= self.settings.max_part_sigma_m)
+            && (preliminary || report.sigma_base_m <= self.settings.max_base_sigma_m);
+        if !trusted {
+            return Err(FaultCause::CalibrationFailed);
+        }
+        let poses = if preliminary {
+            calibration_poses(
+                &estimate,
+                &self.cell.log_header().camera,
+                start_pose,
+                q_now,
+                &self.settings,
+                &self.model,
+            )
+        } else {
+            Vec::new()
+        };
+        Ok((estimate, poses))
+    }
+}
