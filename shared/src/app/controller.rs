@@ -116,7 +116,7 @@ impl ControllerApp {
                     }
                     Err(report) => {
                         self.link.count_received();
-                        let _ = out.push(report);
+                        let _ = out.push(report.message());
                     }
                 }
             }
@@ -147,14 +147,26 @@ impl ControllerApp {
     }
 }
 
-/// The pick's parts for a new cell configuration (a new session number), or
-/// the error report that names the bad field.
-pub fn configure(config: &CellConfig, sessions: &mut u32) -> Result<PickParts, Message> {
+/// A cell configuration refused: which field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ConfigRefused {
+    pub error: ConfigError,
+}
+
+impl ConfigRefused {
+    /// The error report for the peer (the detail is the field's index).
+    pub fn message(&self) -> Message {
+        Message::ErrorReport {
+            code: ErrorCode::BadConfiguration,
+            detail: config_field_index(self.error.field),
+        }
+    }
+}
+
+/// The pick's parts for a new cell configuration (a new session number).
+pub fn configure(config: &CellConfig, sessions: &mut u32) -> Result<PickParts, ConfigRefused> {
     *sessions = sessions.wrapping_add(1);
-    PickParts::new(config, *sessions).map_err(|error: ConfigError| Message::ErrorReport {
-        code: ErrorCode::BadConfiguration,
-        detail: config_field_index(error.field),
-    })
+    PickParts::new(config, *sessions).map_err(|error| ConfigRefused { error })
 }
 
 /// A calibration report when the control loop holds an estimate newer than

@@ -25,6 +25,7 @@ use crate::robot::JointVector;
 
 /// Background work the control loop asks for.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[allow(clippy::large_enum_variant)]
 pub enum JobRequest {
     /// Self-calibrate from what the calibrator holds (Sections 2 and 3); a
     /// preliminary estimate also chooses the poses to show the marks at.
@@ -85,6 +86,7 @@ pub struct TriggerRecord {
 
 /// From the control loop, for the other two parts (in this order).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[allow(clippy::large_enum_variant)]
 pub enum ControlEvent {
     /// For the frame pairer.
     Trigger(TriggerRecord),

@@ -275,7 +275,7 @@ impl PickParts {
             config.conveyor_counts_per_rev,
             usize::from(config.part_feature_count),
         );
-        let worker = PickWorker::new(cell.clone(), settings, model.clone(), calibrator);
+        let worker = PickWorker::new(cell, settings, model, calibrator);
         let control = PickController {
             cell,
             settings,
