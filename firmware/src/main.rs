@@ -26,6 +26,7 @@ defmt::timestamp!("{=u64:us}", embassy_time::Instant::now().as_micros());
 
 #[cortex_m_rt::entry]
 fn main() -> ! {
+    app::stats::stack::paint();
     let board = match board::active::init() {
         Ok(board) => board,
         Err(e) => defmt::panic!("board init failed: {}", e),

@@ -1,34 +1,53 @@
 //! The application: identical on both boards. It only uses the board seam
-//! (`crate::board`), `shared` and embassy.
+//! (`crate::board`), `shared` and embassy. Three tasks at three priorities:
 //!
-//! - [`link`]: the host link task (frames in, `shared::app::LinkResponder`
-//!   replies out).
-//! - [`control_tick`]: the 1 kHz control tick; it keeps the servos safe and
-//!   counts periods so the host sees in `Status` that the executor and the
-//!   board's time driver run.
+//! - [`control_loop`] (highest, interrupt executor): one control period per
+//!   sensor sample: the pick's control part (fusion Eq 1, state machine,
+//!   Eq 23), the outputs, and the supervisor's checks;
+//! - [`link`] (middle, interrupt executor): the serial protocol session, the
+//!   frame pairer, and the messages the control loop queued;
+//! - [`worker`] (thread mode, lowest): the self-calibrator and the jobs
+//!   (estimate, intercept plan), which may take seconds.
+//!
+//! They meet only in [`channels`]; [`stats`] measures them.
 
-mod control_tick;
+mod channels;
+mod control_loop;
 mod link;
+pub mod stats;
+mod worker;
 
 use embassy_executor::Spawner;
 
 use crate::board::ActiveBoard;
+use crate::executor::{start_interrupt_executor, Level};
 
-pub use control_tick::CONTROL_RATE_HZ;
+pub use control_loop::CONTROL_RATE_HZ;
 
 /// Spawns the application's tasks on the board's devices.
-pub fn start(spawner: Spawner, board: ActiveBoard) {
+pub fn start(thread_spawner: Spawner, board: ActiveBoard) {
     defmt::info!(
-        "board {} up, control tick {} Hz",
+        "board {} up, control {} Hz, {}",
         board.name,
-        CONTROL_RATE_HZ
+        CONTROL_RATE_HZ,
+        board.control_source
     );
-    match control_tick::control_tick_task(board.encoders, board.servos) {
-        Ok(token) => spawner.spawn(token),
-        Err(_) => defmt::panic!("cannot spawn the control tick task"),
+    let (Some(control), Some(link)) = (
+        start_interrupt_executor(Level::Control),
+        start_interrupt_executor(Level::Link),
+    ) else {
+        defmt::panic!("interrupt executors started twice");
+    };
+    match control_loop::control_loop(board.plant, board.cycles, board.control_source) {
+        Ok(token) => control.spawn(token),
+        Err(_) => defmt::panic!("cannot spawn the control loop"),
     }
-    match link::link_task(board.name, board.serial) {
-        Ok(token) => spawner.spawn(token),
+    match link::link_task(board.name, board.serial, board.control_source, board.cycles) {
+        Ok(token) => link.spawn(token),
         Err(_) => defmt::panic!("cannot spawn the link task"),
+    }
+    match worker::worker_task(board.cycles) {
+        Ok(token) => thread_spawner.spawn(token),
+        Err(_) => defmt::panic!("cannot spawn the worker"),
     }
 }

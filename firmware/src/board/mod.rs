@@ -9,6 +9,10 @@
 //!   gripper and camera trigger out), and where control periods come from
 //!   ([`ControlSource`]);
 //! - a [`CycleCounter`] to measure the control cycle;
+//! - constants: `CPU_HZ` (the nominal clock a control period's budget is
+//!   counted against) and `CONTROL_IRQ` / `LINK_IRQ` (two spare NVIC lines for
+//!   the interrupt executors; the board's handlers for them call
+//!   `crate::executor::on_interrupt`).
 //! - clock: the board's `embassy_time_driver::Driver` (the QEMU board's own
 //!   driver on the CMSDK dual timer; embassy-stm32's TIM12 driver on the
 //!   STM32F407), used through `embassy_time` by the application.
@@ -42,9 +46,16 @@ pub type JointCounts = [i32; JOINTS];
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum BoardError {
     /// A joint's unwrapped encoder count left the protocol's `i32` range.
+    #[cfg_attr(
+        feature = "board-qemu",
+        allow(dead_code, reason = "the emulated board has no encoders of its own")
+    )]
     EncoderOutOfRange { joint: usize },
     /// A servo torque was NaN or infinite.
     NonFiniteTorque { joint: usize },
+    /// The board has no such device: the emulated board's encoders and
+    /// servos are the simulator's, reached through the link in lock step.
+    NotOnThisBoard { device: &'static str },
 }
 
 impl fmt::Display for BoardError {
@@ -58,6 +69,10 @@ impl fmt::Display for BoardError {
             BoardError::NonFiniteTorque { joint } => {
                 write!(f, "servo torque for joint {} is not finite", joint + 1)
             }
+            BoardError::NotOnThisBoard { device } => write!(
+                f,
+                "{device}: not on this board (the simulator's, through the link in lock step)"
+            ),
         }
     }
 }
@@ -107,14 +122,23 @@ pub trait PlantIo {
 }
 
 /// A free-running counter for measuring the control cycle's cost: CPU cycles
-/// on real silicon (DWT), emulated instructions on QEMU with `-icount`.
-pub trait CycleCounter {
+/// on real silicon (DWT), emulated instructions on QEMU with `-icount`. A
+/// handle is `Copy`: every task that measures holds one.
+pub trait CycleCounter: Copy {
     /// The counter now (wraps).
     fn now(&self) -> u32;
     /// Instructions (or cycles) per count.
     fn scale(&self) -> u32;
-    /// What one unit of `now() * scale()` is: "cycles" or "instructions".
-    fn unit(&self) -> &'static str;
+    /// What one unit of `(now() - then) * scale()` is.
+    fn cost_unit(&self) -> shared::protocol::CostUnit;
+    /// The same as text, for logs.
+    fn unit(&self) -> &'static str {
+        match self.cost_unit() {
+            shared::protocol::CostUnit::Cycles => "cycles",
+            shared::protocol::CostUnit::Instructions => "instructions",
+            shared::protocol::CostUnit::NotMeasured => "(not measured)",
+        }
+    }
 }
 
 /// Checks a torque set before any output is touched.

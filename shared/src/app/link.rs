@@ -5,7 +5,8 @@
 use heapless::String;
 
 use crate::protocol::{
-    ControllerMode, ControllerStatus, DecodeError, ErrorCode, Message, MessageKind, MAX_FRAME_LEN,
+    ControllerMode, ControllerStatus, DecodeError, ErrorCode, Message, MessageKind, RuntimeReport,
+    MAX_FRAME_LEN,
     MAX_NAME_LEN, MAX_VERSION_LEN, PROTOCOL_VERSION,
 };
 
@@ -83,13 +84,17 @@ impl LinkResponder {
                 Some(self.data(MessageKind::ActuatorCommand, command.seq))
             }
             Message::StatusRequest => Some(Message::Status(self.status)),
+            Message::RuntimeReportRequest => Some(Message::RuntimeReport(
+                RuntimeReport::not_measured(self.status.control_ticks),
+            )),
             Message::Configure(_) => Some(self.data(MessageKind::Configure, 0)),
             Message::HelloAck { .. }
             | Message::Status(_)
             | Message::Ack { .. }
             | Message::ErrorReport { .. }
             | Message::Telemetry(_)
-            | Message::CalibrationReport(_) => {
+            | Message::CalibrationReport(_)
+            | Message::RuntimeReport(_) => {
                 self.status.frames_unexpected = self.status.frames_unexpected.wrapping_add(1);
                 Some(Message::ErrorReport {
                     code: ErrorCode::UnexpectedMessage,

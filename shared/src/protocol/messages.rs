@@ -179,4 +179,66 @@ pub enum Message {
     Telemetry(PickTelemetry),
     /// Controller -> host: after each self-calibration.
     CalibrationReport(CalibrationReport),
+    /// Host -> controller: send a `RuntimeReport`.
+    RuntimeReportRequest,
+    /// Controller -> host: what the control loop and the worker cost, and the
+    /// stack used (the firmware measures it; the in-process controller cannot).
+    RuntimeReport(RuntimeReport),
+}
+
+/// What a [`RuntimeReport`]'s costs are counted in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum CostUnit {
+    /// Not measured (the in-process controller).
+    NotMeasured,
+    /// Emulated instructions (QEMU with `-icount shift=0`: 1 ns per instruction).
+    Instructions,
+    /// CPU cycles (the DWT cycle counter of a real Cortex-M4).
+    Cycles,
+}
+
+/// Costs and margins measured by the firmware since the cell was configured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RuntimeReport {
+    pub unit: CostUnit,
+    /// Control periods run.
+    pub control_ticks: u64,
+    /// One control period (sample in to command out): worst and mean.
+    pub control_worst: u32,
+    pub control_mean: u32,
+    /// Background jobs run (estimates and plans) and the worst one's cost.
+    pub jobs_run: u32,
+    pub job_worst: u32,
+    /// Deepest stack use seen (stack painting) and the stack's size, bytes.
+    pub stack_used_bytes: u32,
+    pub stack_size_bytes: u32,
+    /// Control periods that overran their deadline.
+    pub deadline_misses: u32,
+    /// Outgoing messages dropped because the link's queue was full (telemetry
+    /// first; an actuator command is never dropped silently: it counts here too).
+    pub messages_dropped: u32,
+    /// Observations or news dropped between the firmware's tasks (queue full).
+    pub handoffs_dropped: u32,
+    /// Job results that arrived after their due time.
+    pub late_results: u32,
+}
+
+impl RuntimeReport {
+    /// A report of a controller that measures nothing.
+    pub const fn not_measured(control_ticks: u64) -> Self {
+        Self {
+            unit: CostUnit::NotMeasured,
+            control_ticks,
+            control_worst: 0,
+            control_mean: 0,
+            jobs_run: 0,
+            job_worst: 0,
+            stack_used_bytes: 0,
+            stack_size_bytes: 0,
+            deadline_misses: 0,
+            messages_dropped: 0,
+            handoffs_dropped: 0,
+            late_results: 0,
+        }
+    }
 }

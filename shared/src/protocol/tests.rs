@@ -152,6 +152,27 @@ fn arb_message() -> impl Strategy<Value = Message> {
             counter
         }),
         (arb_code(), any::<u32>()).prop_map(|(code, detail)| Message::ErrorReport { code, detail }),
+        Just(Message::RuntimeReportRequest),
+        (any::<u64>(), any::<[u32; 10]>(), 0u8..3).prop_map(|(ticks, v, unit)| {
+            Message::RuntimeReport(RuntimeReport {
+                unit: match unit {
+                    0 => CostUnit::NotMeasured,
+                    1 => CostUnit::Instructions,
+                    _ => CostUnit::Cycles,
+                },
+                control_ticks: ticks,
+                control_worst: v[0],
+                control_mean: v[1],
+                jobs_run: v[2],
+                job_worst: v[3],
+                stack_used_bytes: v[4],
+                stack_size_bytes: v[5],
+                deadline_misses: v[6],
+                messages_dropped: v[7],
+                handoffs_dropped: v[8],
+                late_results: v[9],
+            })
+        }),
     ]
 }
 

@@ -1,8 +1,10 @@
 //! The emulated board: ARM MPS2 AN386 (Cortex-M4F) under `qemu-system-arm
 //! -machine mps2-an386`. UART0 carries the host link (QEMU connects it to a TCP
 //! socket), the CMSDK dual timer drives embassy-time, defmt goes out over
-//! semihosting. There are no motors: encoders and servo outputs are fed and
-//! read by the simulator through the protocol.
+//! semihosting. There are no motors: the simulator is the plant, in lock step
+//! through the protocol (sensor samples in, actuator commands out). TIMER0
+//! counts instructions under `-icount`; NVIC lines 28 and 29 run the interrupt
+//! executors.
 
 mod mmio;
 mod sim_io;
@@ -11,40 +13,44 @@ mod uart;
 
 use defmt_semihosting as _;
 
-#[allow(unused_imports, reason = "read back by the control issue's plant link")]
-pub use sim_io::last_servo_duties;
-pub use sim_io::{SimulatedEncoders, SimulatedServos};
+pub use sim_io::{InstructionCounter, LockStepPlant};
 pub use uart::Uart0;
 
-use super::Board;
+use super::{Board, ControlSource};
+use crate::executor::{on_interrupt, Level};
 
 pub type Serial = Uart0;
-pub type Encoders = SimulatedEncoders;
-pub type Servos = SimulatedServos;
+pub type Plant = LockStepPlant;
+pub type Cycles = InstructionCounter;
 
 /// Name reported in `HelloAck`.
 pub const BOARD_NAME: &str = "mps2-an386";
 
+/// The clock a control period's budget is counted against: the emulator has
+/// none of its own, so the STM32F407's 168 MHz (with one instruction per cycle,
+/// the M4's best case; the report gives the instructions themselves).
+pub const CPU_HZ: u32 = 168_000_000;
+
+/// Spare NVIC lines (no device of the AN386 that QEMU models drives them)
+/// for the interrupt executors.
+pub const CONTROL_IRQ: u16 = 28;
+pub const LINK_IRQ: u16 = 29;
+
 /// Brings up the timebase and UART0. Call once, first thing in `main`.
-pub fn init() -> Result<Board<Serial, Encoders, Servos>, InitError> {
+pub fn init() -> Result<Board<Serial, Plant, Cycles>, InitError> {
     time_driver::init();
     Ok(Board {
         name: BOARD_NAME,
         serial: Uart0::init(),
-        encoders: SimulatedEncoders::take(),
-        servos: SimulatedServos::take(),
+        plant: LockStepPlant::take(),
+        cycles: InstructionCounter::start(),
+        control_source: ControlSource::LockStep,
     })
 }
 
 /// Bringing up the emulated board cannot fail.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum InitError {}
-
-/// A host-side plant sent its joint encoder counts: on the emulated board they
-/// are what the encoders read.
-pub fn on_host_sensor_sample(joint_counts: &super::JointCounts) {
-    sim_io::feed_encoder_counts(*joint_counts);
-}
 
 /// Without cortex-m-rt's `device` feature every external interrupt lands here;
 /// `irqn` is the NVIC line (negative for system exceptions).
@@ -54,6 +60,8 @@ unsafe fn DefaultHandler(irqn: i16) {
         0 => uart::on_rx_interrupt(),
         1 => uart::on_tx_interrupt(),
         10 => time_driver::on_interrupt(),
+        28 => on_interrupt(Level::Control),
+        29 => on_interrupt(Level::Link),
         _ => {
             defmt::error!("unexpected interrupt {}", irqn);
         }

@@ -1,88 +1,90 @@
-//! Encoders and servo outputs of the emulated board. There are no motors: the
-//! host simulator sends joint encoder counts over the link (the link task calls
-//! [`feed_encoder_counts`]) and reads back the servo duties the controller last
-//! commanded ([`last_servo_duties`]).
+//! The emulated board's plant and cycle counter. There are no motors or
+//! encoders: in lock step the simulator sends each period's encoder counts as
+//! a sensor-sample frame and receives the torques as an actuator-command
+//! frame, so the plant here only refuses to pretend and keeps the drives off.
+//!
+//! The cycle counter is the AN386's CMSDK TIMER0 (25 MHz) running free. Under
+//! `qemu-system-arm -icount shift=0` each instruction advances virtual time by
+//! 1 ns, so one count is 40 instructions: costs are reported in instructions
+//! with a 40-instruction resolution. Without `-icount` the counter follows the
+//! host's clock and the figures mean nothing (the tests that report them run
+//! with it).
 
-use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, Ordering};
+use shared::protocol::CostUnit;
 
-use crate::board::{
-    validate_duties, BoardError, JointCounts, JointDuties, JointEncoders, ServoOutputs, JOINTS,
-};
+use super::mmio::Reg;
+use crate::board::{validate_torques, BoardError, CycleCounter, JointCounts, PlantIo, JOINTS};
 
-static ENCODER_COUNTS: [AtomicI32; JOINTS] = [const { AtomicI32::new(0) }; JOINTS];
-/// Duties as `f32` bit patterns.
-static SERVO_DUTIES: [AtomicU32; JOINTS] = [const { AtomicU32::new(0) }; JOINTS];
-static SERVOS_ENABLED: AtomicBool = AtomicBool::new(false);
+const TIMER0: Reg = Reg(0x4000_0000);
+const CTRL: Reg = TIMER0.at(0x00);
+const VALUE: Reg = TIMER0.at(0x04);
+const RELOAD: Reg = TIMER0.at(0x08);
+const CTRL_ENABLE: u32 = 1 << 0;
 
-/// Stores the simulator's latest encoder counts.
-pub fn feed_encoder_counts(counts: JointCounts) {
-    for (slot, count) in ENCODER_COUNTS.iter().zip(counts) {
-        slot.store(count, Ordering::Relaxed);
-    }
-}
+/// Instructions per TIMER0 count with `-icount shift=0` (1 ns each, 25 MHz).
+const INSTRUCTIONS_PER_COUNT: u32 = 40;
 
-/// The duties last commanded, or `None` while the servos are disabled.
-#[allow(
-    dead_code,
-    reason = "the servo path is driven by the control issue (Eq 23 torques to duties)"
-)]
-pub fn last_servo_duties() -> Option<JointDuties> {
-    if !SERVOS_ENABLED.load(Ordering::Acquire) {
-        return None;
-    }
-    let mut duties = [0.0; JOINTS];
-    for (duty, slot) in duties.iter_mut().zip(SERVO_DUTIES.iter()) {
-        *duty = f32::from_bits(slot.load(Ordering::Relaxed));
-    }
-    Some(duties)
-}
-
-/// Encoders read from the counts the simulator fed.
-pub struct SimulatedEncoders {
+/// The simulator's plant, reached through the link.
+pub struct LockStepPlant {
     _owned: (),
 }
 
-impl SimulatedEncoders {
+impl LockStepPlant {
     pub(super) fn take() -> Self {
-        SimulatedEncoders { _owned: () }
+        LockStepPlant { _owned: () }
     }
 }
 
-impl JointEncoders for SimulatedEncoders {
-    fn read_counts(&mut self) -> Result<JointCounts, BoardError> {
-        let mut counts = [0; JOINTS];
-        for (count, slot) in counts.iter_mut().zip(ENCODER_COUNTS.iter()) {
-            *count = slot.load(Ordering::Relaxed);
-        }
-        Ok(counts)
+impl PlantIo for LockStepPlant {
+    fn read_sample(&mut self) -> Result<(JointCounts, u32), BoardError> {
+        Err(BoardError::NotOnThisBoard {
+            device: "encoders",
+        })
     }
+
+    fn apply(
+        &mut self,
+        torque_nm: &[f32; JOINTS],
+        _gripper_closed: bool,
+        _camera_trigger: Option<u32>,
+    ) -> Result<(), BoardError> {
+        validate_torques(torque_nm)?;
+        Err(BoardError::NotOnThisBoard {
+            device: "servo amplifiers",
+        })
+    }
+
+    fn disable(&mut self) {}
 }
 
-/// Servo outputs recorded for the simulator to read back.
-pub struct SimulatedServos {
+/// TIMER0, free-running.
+#[derive(Clone, Copy)]
+pub struct InstructionCounter {
     _owned: (),
 }
 
-impl SimulatedServos {
-    pub(super) fn take() -> Self {
-        SimulatedServos { _owned: () }
+impl InstructionCounter {
+    pub(super) fn start() -> Self {
+        CTRL.write(0);
+        RELOAD.write(u32::MAX);
+        VALUE.write(u32::MAX);
+        CTRL.write(CTRL_ENABLE);
+        InstructionCounter { _owned: () }
     }
 }
 
-impl ServoOutputs for SimulatedServos {
-    fn set_duties(&mut self, duties: JointDuties) -> Result<(), BoardError> {
-        validate_duties(&duties)?;
-        for (slot, duty) in SERVO_DUTIES.iter().zip(duties) {
-            slot.store(duty.to_bits(), Ordering::Relaxed);
-        }
-        SERVOS_ENABLED.store(true, Ordering::Release);
-        Ok(())
+impl CycleCounter for InstructionCounter {
+    fn now(&self) -> u32 {
+        // The timer counts down; flip it so the difference of two readings is
+        // the time between them.
+        u32::MAX - VALUE.read()
     }
 
-    fn disable(&mut self) {
-        SERVOS_ENABLED.store(false, Ordering::Release);
-        for slot in SERVO_DUTIES.iter() {
-            slot.store(0.0f32.to_bits(), Ordering::Relaxed);
-        }
+    fn scale(&self) -> u32 {
+        INSTRUCTIONS_PER_COUNT
+    }
+
+    fn cost_unit(&self) -> CostUnit {
+        CostUnit::Instructions
     }
 }

@@ -247,36 +247,49 @@ impl PickParts {
         settings: PickSettings,
         session: u32,
     ) -> Result<Self, ConfigError> {
+        Ok(Self {
+            control: PickController::new(config, settings, session)?,
+            pairer: FramePairer::for_config(config),
+            worker: PickWorker::new(config, settings)?,
+        })
+    }
+}
+
+/// The controller's dynamic model for Eq 23 (and for the planner's torque
+/// check): the nominal PUMA 560 with armature and smoothed friction, in `f32`.
+fn controller_model() -> Result<Puma560<f32>, ConfigError> {
+    Ok(Puma560::<f64>::new()
+        .with_drive(DriveOptions {
+            armature: true,
+            friction: true,
+        })
+        .try_with_coulomb_smoothing(SIMULATOR_COULOMB_WIDTH)
+        .map_err(|_| ConfigError {
+            field: "controller model",
+        })?
+        .cast::<f32>())
+}
+
+impl PickController {
+    /// The control loop for the cell `config`; `session` tells this
+    /// configuration's job results from an older one's.
+    pub fn new(
+        config: &CellConfig,
+        settings: PickSettings,
+        session: u32,
+    ) -> Result<Self, ConfigError> {
         let cell = Cell::new(config)?;
-        let calibrator = PickCalibrator::new(&cell.log_header(), cell.calibration_config())
-            .map_err(|_| ConfigError {
-                field: "camera intrinsics or reference_radius_m",
-            })?;
         let conveyor = ConveyorFilter::new(config.conveyor_counts_per_rev, cell.counter_width, 1.0)
             .map_err(|_| ConfigError {
                 field: "conveyor_counts_per_rev",
             })?;
-        let model = Puma560::<f64>::new()
-            .with_drive(DriveOptions {
-                armature: true,
-                friction: true,
-            })
-            .try_with_coulomb_smoothing(SIMULATOR_COULOMB_WIDTH)
-            .map_err(|_| ConfigError {
-                field: "controller model",
-            })?
-            .cast::<f32>();
+        let model = controller_model()?;
         let controller =
             TaskSpaceController::new(controller_config()?).map_err(|_| ConfigError {
                 field: "controller gains",
             })?;
         let rest = TaskState::at_rest(Vector3::zeros(), 0.0);
-        let pairer = FramePairer::new(
-            config.conveyor_counts_per_rev,
-            usize::from(config.part_feature_count),
-        );
-        let worker = PickWorker::new(cell, settings, model, calibrator);
-        let control = PickController {
+        Ok(PickController {
             cell,
             settings,
             model,
@@ -318,16 +331,8 @@ impl PickParts {
             tool_measured: Vector3::zeros(),
             tool_yaw_measured: 0.0,
             counters: PickCounters::default(),
-        };
-        Ok(Self {
-            control,
-            pairer,
-            worker,
         })
     }
-}
-
-impl PickController {
 
     pub fn phase(&self) -> PickPhase {
         self.step.phase()
@@ -568,6 +573,19 @@ impl PickController {
         self.motion = Motion::Hold(self.reference);
         self.last_paired_s = self.now_s;
         self.enter(Step::SearchApproach);
+    }
+
+    /// A fault the board's supervisor found (link lost, a board error): the
+    /// same controlled stop as the pick's own faults (decelerate, then hold),
+    /// reported with its cause. Nothing happens if the pick already stopped.
+    pub fn stop(&mut self, cause: FaultCause) {
+        self.raise(cause);
+    }
+
+    /// A job request could not be handed to the worker (its queue was full):
+    /// its result would never come, so stop rather than wait.
+    pub fn on_job_lost(&mut self) {
+        self.raise(FaultCause::Timeout);
     }
 
     fn raise(&mut self, cause: FaultCause) {

@@ -9,7 +9,7 @@ use super::handoff::{TriggerRecord, VisionNews};
 use crate::app::vision::{observation_from_frame, VisionError};
 use crate::fusion::{TriggerLatch, Triggered};
 use crate::observation::ObservationFrame;
-use crate::protocol::CameraFeatureFrame;
+use crate::protocol::{CameraFeatureFrame, CellConfig};
 use crate::robot::Puma560;
 
 /// Triggers awaiting their frames (frames later than 8 periods are stale).
@@ -39,6 +39,14 @@ pub struct Paired {
 }
 
 impl FramePairer {
+    /// The pairer for the cell `config`.
+    pub fn for_config(config: &CellConfig) -> Self {
+        Self::new(
+            config.conveyor_counts_per_rev,
+            usize::from(config.part_feature_count),
+        )
+    }
+
     pub fn new(conveyor_counts_per_rev: u32, part_feature_count: usize) -> Self {
         Self {
             latch: TriggerLatch::new(),

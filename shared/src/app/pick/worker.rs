@@ -6,15 +6,15 @@
 
 use heapless::Vec;
 
-use super::cell::Cell;
+use super::cell::{Cell, ConfigError};
 use super::estimate::CellEstimate;
 use super::handoff::{JobOutcome, JobRequest, JobResult, JobTicket, VisionNews, WorkItem};
 use super::jobs::{calibration_poses, plan_part_intercept, MAX_CALIBRATION_POSES};
 use super::settings::PickSettings;
-use super::PickCalibrator;
+use super::{controller_model, PickCalibrator};
 use crate::calibration::CalibrationError;
 use crate::planning::ArcPoint;
-use crate::protocol::FaultCause;
+use crate::protocol::{CellConfig, FaultCause};
 use crate::robot::Puma560;
 
 /// The calibrator and the job runner.
@@ -27,18 +27,19 @@ pub struct PickWorker {
 }
 
 impl PickWorker {
-    pub(super) fn new(
-        cell: Cell,
-        settings: PickSettings,
-        model: Puma560<f32>,
-        calibrator: PickCalibrator,
-    ) -> Self {
-        Self {
+    /// The worker for the cell `config`.
+    pub fn new(config: &CellConfig, settings: PickSettings) -> Result<Self, ConfigError> {
+        let cell = Cell::new(config)?;
+        let calibrator = PickCalibrator::new(&cell.log_header(), cell.calibration_config())
+            .map_err(|_| ConfigError {
+                field: "camera intrinsics or reference_radius_m",
+            })?;
+        Ok(Self {
             cell,
             settings,
-            model,
+            model: controller_model()?,
             calibrator,
-        }
+        })
     }
 
     /// Takes one item of its queue: an observation goes to the calibrator (a

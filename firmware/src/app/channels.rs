@@ -1,0 +1,42 @@
+//! The hand-offs between the firmware's tasks. Every one is a critical-section
+//! channel or signal that the control loop only ever `try_`s (it never waits
+//! on another task, except in lock step for a job result that is due, see
+//! `control_loop`). Capacities are sized for lock step, where the host sends
+//! one period's frames and then waits for the actuator command, and are
+//! counted when a real-time run overflows them (`RuntimeReport`).
+
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::channel::Channel;
+use embassy_sync::signal::Signal;
+use shared::app::pick::handoff::{TriggerRecord, VisionNews, WorkItem};
+use shared::protocol::{CellConfig, Message, SensorSample};
+
+type Raw = CriticalSectionRawMutex;
+
+/// A cell configuration accepted by the link, for the task that builds its
+/// part of the pick.
+#[derive(Clone, Copy)]
+pub struct Configured {
+    pub config: CellConfig,
+    pub session: u32,
+}
+
+/// Link -> control loop: a new cell configuration.
+pub static CONTROL_CONFIG: Signal<Raw, Configured> = Signal::new();
+/// Link -> worker: a new cell configuration.
+pub static WORKER_CONFIG: Signal<Raw, Configured> = Signal::new();
+/// Link -> control loop (lock step): one sensor sample per control period.
+pub static SAMPLES: Channel<Raw, SensorSample, 2> = Channel::new();
+/// Control loop -> link (frame pairer): the encoders latched at a trigger.
+pub static TRIGGERS: Channel<Raw, TriggerRecord, 8> = Channel::new();
+/// Link (observations) and control loop (jobs) -> worker, in order, with the
+/// session they belong to.
+pub static WORK: Channel<Raw, (u32, WorkItem), 16> = Channel::new();
+/// Link (pairings) and worker (refusals, job results) -> control loop.
+pub static NEWS: Channel<Raw, VisionNews, 8> = Channel::new();
+/// Worker -> control loop: news is waiting (a job result, or the news queue
+/// filled up while the control loop waited for a result).
+pub static NEWS_READY: Signal<Raw, ()> = Signal::new();
+/// Control loop -> link: actuator commands (lock step), telemetry and
+/// calibration reports to send.
+pub static OUTGOING: Channel<Raw, Message, 8> = Channel::new();

@@ -1,0 +1,193 @@
+//! The control loop, at the highest priority: once per period it takes a
+//! sensor sample (the board's encoders on a ticker, or the simulator's frame in
+//! lock step), runs the pick's control part (fusion Eq 1, the state machine,
+//! Eq 23), and drives the outputs (the board's servos, gripper and camera
+//! trigger, or an actuator-command frame in lock step). It hands triggers to
+//! the link's frame pairer and jobs to the worker without ever waiting for
+//! them, and measures its own cost.
+//!
+//! Supervisor duties here: a watchdog on the link (ticker mode: no valid frame
+//! from the vision computer for [`LINK_TIMEOUT_US`] stops the arm), vision
+//! staleness and the tracking, torque and speed checks inside the pick; any
+//! fault ends in the pick's controlled stop, reported in telemetry.
+
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use embassy_time::{Duration, Instant, Ticker};
+use heapless::Vec;
+use shared::app::new_calibration_report;
+use shared::app::pick::handoff::{ControlEvent, WorkItem};
+use shared::app::pick::settings::PickSettings;
+use shared::app::pick::{PickController, MAX_TICK_MESSAGES};
+use shared::protocol::{FaultCause, GripperCommand, Message, PickPhase, SensorSample};
+
+use super::channels::{
+    CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, SAMPLES, TRIGGERS, WORK,
+};
+use super::stats;
+use crate::board::{active, ControlSource, CycleCounter, PlantIo};
+
+/// Control-loop rate: the plant model and the gains assume a 1 ms period.
+pub const CONTROL_RATE_HZ: u32 = 1_000;
+
+/// Ticker mode: the arm stops when no valid frame came from the vision
+/// computer for this long.
+pub const LINK_TIMEOUT_US: u32 = 500_000;
+
+/// Time of the last valid frame from the host, microseconds modulo 2^32
+/// (written by the link task; compared with wrapping arithmetic, which is
+/// exact for gaps under 71 minutes).
+pub static LAST_HOST_FRAME_US: AtomicU32 = AtomicU32::new(0);
+/// Sequence number of ticker-mode samples.
+static TICKER_SEQ: AtomicU32 = AtomicU32::new(0);
+
+/// Hands everything news-like the other tasks left to the pick.
+fn drain_news(pick: &mut PickController) {
+    while let Ok(news) = NEWS.try_receive() {
+        pick.on_news(&news);
+    }
+}
+
+/// Queues a message for the link; counts it when the queue is full.
+fn send(message: Message) {
+    if OUTGOING.try_send(message).is_err() {
+        stats::count_dropped_message();
+    }
+}
+
+/// Hands the tick's triggers to the pairer and its job to the worker.
+fn hand_on_events(pick: &mut PickController, session: u32) {
+    while let Some(event) = pick.pop_event() {
+        match event {
+            ControlEvent::Trigger(record) => {
+                if TRIGGERS.try_send(record).is_err() {
+                    stats::count_dropped_handoff();
+                }
+            }
+            ControlEvent::Job(ticket) => {
+                if WORK.try_send((session, WorkItem::Job(ticket))).is_err() {
+                    stats::count_dropped_handoff();
+                    pick.on_job_lost();
+                }
+            }
+        }
+    }
+}
+
+/// The next sample: from the link in lock step, from the board's encoders on
+/// the ticker.
+async fn next_sample(
+    source: ControlSource,
+    ticker: &mut Ticker,
+    plant: &mut active::Plant,
+) -> Option<SensorSample> {
+    match source {
+        ControlSource::LockStep => Some(SAMPLES.receive().await),
+        ControlSource::Ticker => {
+            ticker.next().await;
+            match plant.read_sample() {
+                Ok((joint_counts, conveyor_counts)) => Some(SensorSample {
+                    seq: TICKER_SEQ.fetch_add(1, Ordering::Relaxed),
+                    time_us: Instant::now().as_micros(),
+                    joint_counts,
+                    conveyor_counts,
+                }),
+                Err(e) => {
+                    defmt::warn!("control loop: {}", e);
+                    None
+                }
+            }
+        }
+    }
+}
+
+#[embassy_executor::task]
+pub async fn control_loop(
+    mut plant: active::Plant,
+    cycles: active::Cycles,
+    source: ControlSource,
+) {
+    plant.disable();
+    let mut pick: Option<(u32, PickController)> = None;
+    let mut reported_estimate = 0u32;
+    let mut last_phase = PickPhase::Idle;
+    let mut ticker = Ticker::every(Duration::from_hz(u64::from(CONTROL_RATE_HZ)));
+    // The period's budget in the counter's units at the board's nominal clock.
+    let budget = active::CPU_HZ / CONTROL_RATE_HZ;
+    loop {
+        let sample = next_sample(source, &mut ticker, &mut plant).await;
+        if let Some(configured) = CONTROL_CONFIG.try_take() {
+            match PickController::new(
+                &configured.config,
+                PickSettings::default(),
+                configured.session,
+            ) {
+                Ok(controller) => {
+                    pick = Some((configured.session, controller));
+                    reported_estimate = 0;
+                    stats::reset_costs();
+                }
+                Err(e) => {
+                    defmt::error!("control loop: configuration refused: {}", e.field);
+                    pick = None;
+                }
+            }
+        }
+        let (Some(sample), Some((session, controller))) = (sample, pick.as_mut()) else {
+            plant.disable();
+            continue;
+        };
+        drain_news(controller);
+        if source == ControlSource::LockStep {
+            // Lock step: the plant waits for this period anyway, so wait for
+            // a result that is due rather than apply it late: the run is then
+            // the same whatever the emulator's speed.
+            while controller.awaits_result(sample.time_us) {
+                NEWS_READY.wait().await;
+                drain_news(controller);
+            }
+        }
+        let started = cycles.now();
+        if source == ControlSource::Ticker
+            && (sample.time_us as u32).wrapping_sub(LAST_HOST_FRAME_US.load(Ordering::Relaxed))
+                > LINK_TIMEOUT_US
+        {
+            controller.stop(FaultCause::LinkLost);
+        }
+        let mut extra: Vec<Message, MAX_TICK_MESSAGES> = Vec::new();
+        let command = controller.on_sensor_sample(&sample, &mut extra);
+        hand_on_events(controller, *session);
+        match source {
+            ControlSource::LockStep => send(Message::ActuatorCommand(command)),
+            ControlSource::Ticker => {
+                let closed = command.gripper == GripperCommand::Close;
+                if let Err(e) =
+                    plant.apply(&command.joint_torque_nm, closed, command.camera_trigger)
+                {
+                    defmt::error!("control loop: {}; drives off", e);
+                    controller.stop(FaultCause::ControlFailure);
+                }
+            }
+        }
+        if let Some(report) = new_calibration_report(controller, &mut reported_estimate) {
+            send(report);
+        }
+        for message in extra {
+            send(message);
+        }
+        let phase = controller.phase();
+        if phase != last_phase {
+            last_phase = phase;
+            match controller.fault() {
+                Some(cause) => defmt::warn!(
+                    "pick: {} ({})",
+                    defmt::Debug2Format(&phase),
+                    defmt::Debug2Format(&cause)
+                ),
+                None => defmt::info!("pick: {}", defmt::Debug2Format(&phase)),
+            }
+        }
+        let cost = cycles.now().wrapping_sub(started).saturating_mul(cycles.scale());
+        stats::record_control(cost, cost > budget, controller.counters().late_results);
+    }
+}
