@@ -18,6 +18,10 @@
 //! critical section that only the handler takes; the two vectors have the
 //! same priority, so they never preempt each other either.
 //!
+//! Priority: the two vectors keep the reset priority, like the UART and the
+//! time driver, so an edge waits at most for one of those short handlers; all
+//! of them preempt the control loop, which runs in thread mode.
+//!
 //! Limits: each edge costs one interrupt (about 12 cycles of entry and exit
 //! plus the handler's body, well under a microsecond at 168 MHz, not measured
 //! on hardware). If the next edge arrives before the handler has sampled the

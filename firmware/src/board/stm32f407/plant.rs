@@ -31,9 +31,21 @@ pub struct Stm32Plant {
     servos: ServoAmplifiers,
     gripper: Output<'static>,
     camera_trigger: Output<'static>,
-    /// Skipped conveyor steps last reported, to log only new ones.
-    conveyor_skipped_seen: u32,
+    /// Conveyor decoder trouble already logged, and samples since.
+    conveyor_reported: ConveyorReport,
 }
+
+/// Rate-limits the conveyor decoder's warnings: the log goes over RTT, which
+/// blocks when a probe is attached and its buffer is full, so a noisy encoder
+/// must not put a log line into every control period.
+struct ConveyorReport {
+    skipped: u32,
+    faults: u32,
+    samples_since: u32,
+}
+
+/// At most one conveyor warning per this many samples (1 s at 1 kHz).
+const CONVEYOR_REPORT_EVERY: u32 = 1000;
 
 /// The devices the plant is built from.
 pub struct PlantDevices {
@@ -54,8 +66,41 @@ impl Stm32Plant {
             servos: devices.servos,
             gripper: devices.gripper,
             camera_trigger: devices.camera_trigger,
-            conveyor_skipped_seen: 0,
+            conveyor_reported: ConveyorReport {
+                skipped: 0,
+                faults: 0,
+                samples_since: CONVEYOR_REPORT_EVERY,
+            },
         }
+    }
+
+    /// The seam has no error for a lossy conveyor decoder (its count stays
+    /// usable, a few counts short), so lost steps and decoder faults are
+    /// logged, at most once a second.
+    fn report_conveyor_trouble(&mut self) {
+        let report = &mut self.conveyor_reported;
+        report.samples_since = report.samples_since.saturating_add(1);
+        if report.samples_since < CONVEYOR_REPORT_EVERY {
+            return;
+        }
+        let skipped = self.conveyor.skipped_steps();
+        let faults = self.conveyor.faults();
+        if faults != report.faults {
+            defmt::error!(
+                "conveyor encoder: decoder fault ({} so far), decoding stopped",
+                faults
+            );
+        } else if skipped != report.skipped {
+            defmt::warn!(
+                "conveyor encoder: {} steps lost so far (edges closer than the EXTI handler's latency)",
+                skipped
+            );
+        } else {
+            return;
+        }
+        report.skipped = skipped;
+        report.faults = faults;
+        report.samples_since = 0;
     }
 }
 
@@ -63,15 +108,7 @@ impl PlantIo for Stm32Plant {
     fn read_sample(&mut self) -> Result<(JointCounts, u32), BoardError> {
         let joints = self.joints.read_counts()?;
         let conveyor = self.conveyor.count();
-        let skipped = self.conveyor.skipped_steps();
-        if skipped != self.conveyor_skipped_seen {
-            defmt::warn!(
-                "conveyor encoder: {} steps lost so far (edges faster than the EXTI handler), decoder faults {}",
-                skipped,
-                self.conveyor.faults()
-            );
-            self.conveyor_skipped_seen = skipped;
-        }
+        self.report_conveyor_trouble();
         Ok((joints, conveyor))
     }
 
