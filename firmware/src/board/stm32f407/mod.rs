@@ -74,6 +74,26 @@ pub enum InitError {
     CoreClock { sys_hz: u32 },
 }
 
+impl core::fmt::Display for InitError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            InitError::UartConfig => write!(f, "USART2 rejected the host link configuration"),
+            InitError::CorePeripheralsTaken => {
+                write!(
+                    f,
+                    "the Cortex-M core peripherals (DWT, DCB) were already taken"
+                )
+            }
+            InitError::CoreClock { sys_hz } => write!(
+                f,
+                "core clock is {} Hz, not the planned {} Hz",
+                sys_hz,
+                clock::SYSCLK_HZ
+            ),
+        }
+    }
+}
+
 /// Brings up the clock tree, the time driver, USART2 and the plant I/O with
 /// every amplifier disabled. Call once, first in `main`.
 pub fn init() -> Result<Board<Serial, Plant, Cycles>, InitError> {

@@ -202,7 +202,7 @@ mod tests {
         let mut rng = Rng(0xC0FF_EE00_1234_5678);
         for _ in 0..1000 {
             let position = (rng.next() % 4096) as i64;
-            let direction = if rng.next() % 2 == 0 { 2 } else { -2 };
+            let direction = if rng.next() & 1 == 0 { 2 } else { -2 };
             let (a0, b0) = levels(position);
             let (a1, b1) = levels(position + direction);
             let step = quadrature_step(

@@ -1,4 +1,6 @@
-//! Torque to sign-magnitude PWM, as pure functions.
+//! Torque to sign-magnitude PWM, as pure functions: the joint torques `tau`
+//! of the paper's control law (Eq 23, the torques of the dynamic model Eq 16)
+//! reach the motors only through these duties.
 //!
 //! The servo amplifiers take a direction line and a PWM magnitude: the drive
 //! delivers its rated torque at 100 % duty and scales linearly below it (a
