@@ -17,7 +17,7 @@ use embassy_stm32::timer::qei::{Config as QeiConfig, Qei};
 
 use shared::fusion::{CounterWidth, EncoderUnwrapper};
 
-use crate::board::{BoardError, JointCounts, JointEncoders};
+use crate::board::{BoardError, JointCounts};
 
 /// The six quadrature decoders, joint 1 first.
 pub struct QuadratureEncoders {
@@ -79,8 +79,9 @@ pub fn qei_config() -> QeiConfig {
     QeiConfig::default()
 }
 
-impl JointEncoders for QuadratureEncoders {
-    fn read_counts(&mut self) -> Result<JointCounts, BoardError> {
+impl QuadratureEncoders {
+    /// The joint counts since boot, unwrapped from the 16-bit timers.
+    pub fn read_counts(&mut self) -> Result<JointCounts, BoardError> {
         let raw = self.raw();
         let mut out = [0i32; 6];
         for (joint, ((out, count), raw)) in out

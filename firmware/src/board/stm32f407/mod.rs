@@ -1,43 +1,60 @@
 //! The real board: STM32F407VG (e.g. STM32F4-Discovery) on embassy-stm32.
 //!
-//! Peripheral plan (one owner each, taken here so nothing else can use them):
+//! Peripheral plan (one owner each, taken here so nothing else can use them;
+//! the full pin map is in `firmware/README.md`):
+//! - clock: 168 MHz from the HSI through the PLL, no crystal needed
+//!   ([`clock`]);
 //! - host link: USART2, TX on PA2, RX on PA3, 115 200 baud, interrupt-driven
 //!   with ring buffers (`BufferedUart`);
-//! - clock: embassy-stm32's time driver on TIM12 (cargo feature
+//! - time: embassy-stm32's time driver on TIM12 (cargo feature
 //!   `time-driver-tim12`), so the timers below stay free;
-//! - joint encoders (quadrature): TIM1, TIM8, TIM2, TIM5, TIM3, TIM4 for
-//!   joints 1 to 6, pins in [`encoders`];
-//! - servo PWM: TIM9 CH1/CH2 (joints 1, 2), TIM10 CH1, TIM11 CH1, TIM13 CH1,
-//!   TIM14 CH1 (joints 3 to 6).
+//! - joint encoders: TIM1, TIM8, TIM2, TIM5, TIM3, TIM4 in quadrature mode
+//!   ([`encoders`]);
+//! - conveyor encoder: PD2/PD3 on EXTI2/EXTI3, x4-decoded in software
+//!   ([`conveyor`], [`quadrature`]);
+//! - servo amplifiers: sign-magnitude PWM at 20 kHz on TIM9 CH1/CH2, TIM10,
+//!   TIM11, TIM13, TIM14 CH1, direction lines PE7/8/10/12/13/14, enable PE15
+//!   ([`servo`], [`sign_magnitude`]);
+//! - gripper PD0, camera trigger PD1 ([`plant`]);
+//! - cycle counter: the DWT's CYCCNT ([`cycles`]).
 //!
-//! The PWM timers are reserved now; the issue that brings up the amplifiers
-//! (PWM pins, direction outputs, enable) wires them. Until then
-//! `ServoOutputs` answers `BoardError::NotWired` instead of pretending.
-//!
-//! The core runs from the 16 MHz HSI (embassy-stm32's default configuration),
-//! so the firmware does not assume a particular crystal.
+//! The plant runs from the board's own ticker ([`ControlSource::Ticker`]).
 
+mod clock;
+mod conveyor;
+mod cycles;
 mod encoders;
+mod plant;
+mod quadrature;
+mod servo;
+mod sign_magnitude;
 
 use defmt_rtt as _;
-use embassy_stm32::peripherals::{TIM10, TIM11, TIM13, TIM14, TIM9, USART2};
+use embassy_stm32::bind_interrupts;
+use embassy_stm32::gpio::{Level, Output, Speed};
+use embassy_stm32::peripherals::USART2;
 use embassy_stm32::timer::qei::Qei;
 use embassy_stm32::usart::{BufferedInterruptHandler, BufferedUart, Config as UartConfig};
-use embassy_stm32::{bind_interrupts, Peri};
 use panic_probe as _;
 
+pub use cycles::DwtCycles;
 pub use encoders::QuadratureEncoders;
 use encoders::{qei_config, EncoderPeripherals};
+use plant::PlantDevices;
+pub use plant::Stm32Plant;
+use servo::{ServoAmplifiers, ServoPeripherals};
 
-use super::{validate_duties, Board, BoardError, JointCounts, JointDuties, ServoOutputs};
+use super::{Board, ControlSource};
 
 bind_interrupts!(struct Irqs {
     USART2 => BufferedInterruptHandler<USART2>;
+    EXTI2 => conveyor::EdgeHandler;
+    EXTI3 => conveyor::EdgeHandler;
 });
 
 pub type Serial = BufferedUart<'static>;
-pub type Encoders = QuadratureEncoders;
-pub type Servos = PwmServos;
+pub type Plant = Stm32Plant;
+pub type Cycles = DwtCycles;
 
 /// Name reported in `HelloAck`.
 pub const BOARD_NAME: &str = "stm32f407";
@@ -45,44 +62,73 @@ pub const BOARD_NAME: &str = "stm32f407";
 const LINK_BAUD: u32 = 115_200;
 const UART_BUFFER_LEN: usize = 512;
 
-/// The PWM timers, reserved for the servo amplifier inputs.
-pub struct PwmServos {
-    /// CH1 joint 1, CH2 joint 2.
-    _joints12: Peri<'static, TIM9>,
-    _joint3: Peri<'static, TIM10>,
-    _joint4: Peri<'static, TIM11>,
-    _joint5: Peri<'static, TIM13>,
-    _joint6: Peri<'static, TIM14>,
-}
-
-impl ServoOutputs for PwmServos {
-    fn set_duties(&mut self, duties: JointDuties) -> Result<(), BoardError> {
-        validate_duties(&duties)?;
-        Err(BoardError::NotWired {
-            device: "servo PWM",
-            peripherals: "TIM9 TIM10 TIM11 TIM13 TIM14",
-        })
-    }
-
-    fn disable(&mut self) {
-        // Nothing is driven until the PWM pins are wired: already disabled.
-    }
-}
-
-/// A host-side plant sent joint encoder counts. The real board reads its own
-/// encoders, so a host's counts are only telemetry here and do not overwrite them.
-pub fn on_host_sensor_sample(_joint_counts: &JointCounts) {}
-
 /// Errors bringing the board up.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum InitError {
     /// `BufferedUart::new` rejected the link configuration.
     UartConfig,
+    /// The Cortex-M core peripherals (DWT, DCB) were already taken.
+    CorePeripheralsTaken,
+    /// The clock tree did not come up at the planned core clock (Hz, 0 if
+    /// unknown): the PWM periods and cycle counts would be wrong.
+    CoreClock { sys_hz: u32 },
 }
 
-/// Brings up clocks, the time driver and USART2. Call once, first in `main`.
-pub fn init() -> Result<Board<Serial, Encoders, Servos>, InitError> {
-    let p = embassy_stm32::init(embassy_stm32::Config::default());
+impl core::fmt::Display for InitError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            InitError::UartConfig => write!(f, "USART2 rejected the host link configuration"),
+            InitError::CorePeripheralsTaken => {
+                write!(
+                    f,
+                    "the Cortex-M core peripherals (DWT, DCB) were already taken"
+                )
+            }
+            InitError::CoreClock { sys_hz } => write!(
+                f,
+                "core clock is {} Hz, not the planned {} Hz",
+                sys_hz,
+                clock::SYSCLK_HZ
+            ),
+        }
+    }
+}
+
+/// Brings up the clock tree, the time driver, USART2 and the plant I/O with
+/// every amplifier disabled. Call once, first in `main`.
+pub fn init() -> Result<Board<Serial, Plant, Cycles>, InitError> {
+    let p = embassy_stm32::init(clock::config());
+    let sys_hz = embassy_stm32::rcc::clocks(&p.RCC)
+        .sys
+        .to_hertz()
+        .map_or(0, |hz| hz.0);
+    if sys_hz != clock::SYSCLK_HZ {
+        return Err(InitError::CoreClock { sys_hz });
+    }
+    // First of all outputs: the amplifiers stay off until the first `apply`.
+    let servos = ServoAmplifiers::new(ServoPeripherals {
+        tim9: p.TIM9,
+        tim10: p.TIM10,
+        tim11: p.TIM11,
+        tim13: p.TIM13,
+        tim14: p.TIM14,
+        pwm1: p.PE5,
+        pwm2: p.PE6,
+        pwm3: p.PB8,
+        pwm4: p.PB9,
+        pwm5: p.PA6,
+        pwm6: p.PA7,
+        dir1: p.PE7,
+        dir2: p.PE8,
+        dir3: p.PE10,
+        dir4: p.PE12,
+        dir5: p.PE13,
+        dir6: p.PE14,
+        enable: p.PE15,
+    });
+
+    let core = cortex_m::Peripherals::take().ok_or(InitError::CorePeripheralsTaken)?;
+    let cycles = DwtCycles::start(core.DCB, core.DWT);
 
     static mut TX_BUFFER: [u8; UART_BUFFER_LEN] = [0; UART_BUFFER_LEN];
     static mut RX_BUFFER: [u8; UART_BUFFER_LEN] = [0; UART_BUFFER_LEN];
@@ -100,23 +146,28 @@ pub fn init() -> Result<Board<Serial, Encoders, Servos>, InitError> {
     let serial = BufferedUart::new(p.USART2, p.PA3, p.PA2, tx_buffer, rx_buffer, Irqs, config)
         .map_err(|_| InitError::UartConfig)?;
 
+    let joints = QuadratureEncoders::new(EncoderPeripherals {
+        joint1: Qei::new(p.TIM1, p.PE9, p.PE11, qei_config()),
+        joint2: Qei::new(p.TIM8, p.PC6, p.PC7, qei_config()),
+        joint3: Qei::new(p.TIM2, p.PA15, p.PB3, qei_config()),
+        joint4: Qei::new(p.TIM5, p.PA0, p.PA1, qei_config()),
+        joint5: Qei::new(p.TIM3, p.PB4, p.PB5, qei_config()),
+        joint6: Qei::new(p.TIM4, p.PB6, p.PB7, qei_config()),
+    });
+    let conveyor = conveyor::ConveyorEncoder::start(p.PD2, p.EXTI2, p.PD3, p.EXTI3);
+    let plant = Stm32Plant::new(PlantDevices {
+        joints,
+        conveyor,
+        servos,
+        gripper: Output::new(p.PD0, Level::Low, Speed::Low),
+        camera_trigger: Output::new(p.PD1, Level::Low, Speed::Low),
+    });
+
     Ok(Board {
         name: BOARD_NAME,
         serial,
-        encoders: QuadratureEncoders::new(EncoderPeripherals {
-            joint1: Qei::new(p.TIM1, p.PE9, p.PE11, qei_config()),
-            joint2: Qei::new(p.TIM8, p.PC6, p.PC7, qei_config()),
-            joint3: Qei::new(p.TIM2, p.PA15, p.PB3, qei_config()),
-            joint4: Qei::new(p.TIM5, p.PA0, p.PA1, qei_config()),
-            joint5: Qei::new(p.TIM3, p.PB4, p.PB5, qei_config()),
-            joint6: Qei::new(p.TIM4, p.PB6, p.PB7, qei_config()),
-        }),
-        servos: PwmServos {
-            _joints12: p.TIM9,
-            _joint3: p.TIM10,
-            _joint4: p.TIM11,
-            _joint5: p.TIM13,
-            _joint6: p.TIM14,
-        },
+        plant,
+        cycles,
+        control_source: ControlSource::Ticker,
     })
 }

@@ -1,0 +1,144 @@
+//! The board's side of the control loop ([`PlantIo`]): joint and conveyor
+//! encoders in; servo amplifiers, gripper and camera trigger out.
+//!
+//! | signal | pin | direction | level |
+//! | --- | --- | --- | --- |
+//! | gripper | PD0 | out | high = close |
+//! | camera trigger | PD1 | out | high for one control period per trigger |
+//!
+//! The camera trigger is a pulse one control period wide (1 ms at the 1 kHz
+//! control rate): `apply` raises it when the controller asks for a frame and
+//! the next `apply` lowers it. The trigger id travels over the link, not on
+//! the pin; the camera exposes on the rising edge, which is when the
+//! controller latched the encoders for that id. Triggers in consecutive
+//! periods merge into one longer pulse and one exposure: the later ids get no
+//! frame, which the host sees as a camera dropout. Delaying them instead
+//! would pair an image with encoder counts latched a period earlier, a silent
+//! error in the calibration data. (The pick fires the camera every few tens
+//! of periods, so this does not arise there.)
+
+use embassy_stm32::gpio::Output;
+
+use super::conveyor::ConveyorEncoder;
+use super::encoders::QuadratureEncoders;
+use super::servo::ServoAmplifiers;
+use crate::board::{validate_torques, BoardError, JointCounts, PlantIo, JOINTS};
+
+/// Everything the control loop drives or reads, owned in one place.
+pub struct Stm32Plant {
+    joints: QuadratureEncoders,
+    conveyor: ConveyorEncoder,
+    servos: ServoAmplifiers,
+    gripper: Output<'static>,
+    camera_trigger: Output<'static>,
+    /// Conveyor decoder trouble already logged, and samples since.
+    conveyor_reported: ConveyorReport,
+}
+
+/// Rate-limits the conveyor decoder's warnings: the log goes over RTT, which
+/// blocks when a probe is attached and its buffer is full, so a noisy encoder
+/// must not put a log line into every control period.
+struct ConveyorReport {
+    skipped: u32,
+    faults: u32,
+    samples_since: u32,
+}
+
+/// At most one conveyor warning per this many samples (1 s at 1 kHz).
+const CONVEYOR_REPORT_EVERY: u32 = 1000;
+
+/// The devices the plant is built from.
+pub struct PlantDevices {
+    pub joints: QuadratureEncoders,
+    pub conveyor: ConveyorEncoder,
+    pub servos: ServoAmplifiers,
+    /// PD0, created low (open).
+    pub gripper: Output<'static>,
+    /// PD1, created low.
+    pub camera_trigger: Output<'static>,
+}
+
+impl Stm32Plant {
+    pub fn new(devices: PlantDevices) -> Self {
+        Stm32Plant {
+            joints: devices.joints,
+            conveyor: devices.conveyor,
+            servos: devices.servos,
+            gripper: devices.gripper,
+            camera_trigger: devices.camera_trigger,
+            conveyor_reported: ConveyorReport {
+                skipped: 0,
+                faults: 0,
+                samples_since: CONVEYOR_REPORT_EVERY,
+            },
+        }
+    }
+
+    /// The seam has no error for a lossy conveyor decoder (its count stays
+    /// usable, a few counts short), so lost steps and decoder faults are
+    /// logged, at most once a second.
+    fn report_conveyor_trouble(&mut self) {
+        let report = &mut self.conveyor_reported;
+        report.samples_since = report.samples_since.saturating_add(1);
+        if report.samples_since < CONVEYOR_REPORT_EVERY {
+            return;
+        }
+        let skipped = self.conveyor.skipped_steps();
+        let faults = self.conveyor.faults();
+        if faults != report.faults {
+            defmt::error!(
+                "conveyor encoder: decoder fault ({} so far), decoding stopped",
+                faults
+            );
+        } else if skipped != report.skipped {
+            defmt::warn!(
+                "conveyor encoder: {} steps lost so far (edges closer than the EXTI handler's latency)",
+                skipped
+            );
+        } else {
+            return;
+        }
+        report.skipped = skipped;
+        report.faults = faults;
+        report.samples_since = 0;
+    }
+}
+
+impl PlantIo for Stm32Plant {
+    fn read_sample(&mut self) -> Result<(JointCounts, u32), BoardError> {
+        let joints = self.joints.read_counts()?;
+        let conveyor = self.conveyor.count();
+        self.report_conveyor_trouble();
+        Ok((joints, conveyor))
+    }
+
+    fn apply(
+        &mut self,
+        torque_nm: &[f32; JOINTS],
+        gripper_closed: bool,
+        camera_trigger: Option<u32>,
+    ) -> Result<(), BoardError> {
+        if let Err(error) = validate_torques(torque_nm) {
+            self.disable();
+            return Err(error);
+        }
+        self.servos.drive(torque_nm);
+        if gripper_closed {
+            self.gripper.set_high();
+        } else {
+            self.gripper.set_low();
+        }
+        // High for this period when a frame is asked for, low otherwise: the
+        // pulse is one control period wide.
+        if camera_trigger.is_some() {
+            self.camera_trigger.set_high();
+        } else {
+            self.camera_trigger.set_low();
+        }
+        Ok(())
+    }
+
+    fn disable(&mut self) {
+        self.servos.disable();
+    }
+}
