@@ -187,6 +187,8 @@ fn run() -> Option<()> {
         hprintln!("{} {:>6}", name, count);
     }
 
+    pick_tick(&timer, &model, &q);
+
     let x = 0.7_f32;
     let math = [
         (
@@ -220,6 +222,70 @@ fn run() -> Option<()> {
         hprintln!("{} {:>6}", name, count);
     }
     Some(())
+}
+
+/// The whole control period of the pick (`PickController::on_sensor_sample`:
+/// observer, conveyor filter, state machine, motion reference, Eq 23,
+/// telemetry) during the search arc, and the forward kinematics it runs.
+fn pick_tick(timer: &timer::DualTimer, model: &Puma560<f32>, q: &Joints<f32>) {
+    use shared::app::pick::settings::PickSettings;
+    use shared::app::pick::{PickController, MAX_TICK_MESSAGES};
+    use shared::protocol::{CellConfig, SensorSample};
+    let config = CellConfig {
+        image_width_px: 256,
+        image_height_px: 256,
+        f_px: 300.0,
+        cx_px: 128.0,
+        cy_px: 128.0,
+        pixel_sigma_px: 0.5,
+        reference_radius_m: 0.4,
+        part_feature_count: 4,
+        conveyor_counts_per_rev: 4096,
+        conveyor_counter_bits: 16,
+        joint_counts_per_rad: [10_000.0; 6],
+        disc_height_in_base_m: None,
+        drop_off_base_m: [0.0, 0.55, 0.3],
+        camera_period_ms: 200,
+        telemetry_period_ticks: 20,
+    };
+    let Ok(mut pick) = PickController::new(&config, PickSettings::default(), 1) else {
+        hprintln!("  pick tick: configuration refused");
+        return;
+    };
+    let counts = q.map(|angle| (angle * 10_000.0) as i32);
+    let mut seq = 0u32;
+    let mut sample = move || {
+        seq += 1;
+        SensorSample {
+            seq,
+            time_us: u64::from(seq) * 1_000,
+            joint_counts: [
+                counts[0], counts[1], counts[2], counts[3], counts[4], counts[5],
+            ],
+            conveyor_counts: seq / 4,
+        }
+    };
+    // Into the search arc (the first sample starts it).
+    for _ in 0..300 {
+        let mut out = heapless::Vec::<_, MAX_TICK_MESSAGES>::new();
+        let _ = pick.on_sensor_sample(&sample(), &mut out);
+        while pick.pop_event().is_some() {}
+    }
+    let tick = timer.measure(CALLS, || {
+        let mut out = heapless::Vec::<_, MAX_TICK_MESSAGES>::new();
+        let command = pick.on_sensor_sample(&sample(), &mut out);
+        while pick.pop_event().is_some() {}
+        black_box((command, out))
+    });
+    hprintln!(
+        "  pick control period (search arc) {:>6}   (phase {:?})",
+        tick,
+        pick.phase()
+    );
+    hprintln!(
+        "  forward kinematics (f32)        {:>6}",
+        timer.measure(CALLS, || model.forward_kinematics(black_box(q)))
+    );
 }
 
 #[panic_handler]

@@ -14,7 +14,7 @@ pub const ELF_ENV: &str = "FIRMWARE_QEMU_ELF";
 
 /// How to make the ELF, for error messages.
 pub const BUILD_HINT: &str =
-    "build it with `scripts/build-firmware` or `cargo build -p firmware --release \
+    "build it with `scripts/build-firmware` or `cargo build -p firmware --profile firmware \
      --target thumbv7em-none-eabihf --no-default-features --features board-qemu` \
      (install QEMU with `apt-get install -y qemu-system-arm`)";
 
@@ -64,7 +64,7 @@ impl fmt::Display for QemuError {
 
 impl std::error::Error for QemuError {}
 
-/// The firmware ELF: `$FIRMWARE_QEMU_ELF`, else the qemu board's release build
+/// The firmware ELF: `$FIRMWARE_QEMU_ELF`, else the qemu board's `firmware`-profile build
 /// under the workspace's target directory.
 pub fn firmware_elf_path() -> PathBuf {
     if let Some(path) = std::env::var_os(ELF_ENV) {
@@ -79,7 +79,7 @@ pub fn firmware_elf_path() -> PathBuf {
     } else {
         workspace.join(target)
     };
-    target.join("thumbv7em-none-eabihf/release/firmware")
+    target.join("thumbv7em-none-eabihf/firmware/firmware")
 }
 
 /// Checks that `path` is a 32-bit little-endian ARM ELF whose entry point
@@ -132,6 +132,17 @@ impl QemuBoard {
     /// CPU until a client connects (`wait=on`), so nothing the firmware sends
     /// is lost.
     pub fn start(elf: &Path) -> Result<Self, QemuError> {
+        Self::start_with(elf, &[])
+    }
+
+    /// [`QemuBoard::start`] with one emulated nanosecond per instruction
+    /// (`-icount shift=0`), so the firmware's TIMER0 counts instructions
+    /// (one count per 40) and its `RuntimeReport` gives instruction counts.
+    pub fn start_counting_instructions(elf: &Path) -> Result<Self, QemuError> {
+        Self::start_with(elf, &["-icount", "shift=0"])
+    }
+
+    fn start_with(elf: &Path, extra_args: &[&str]) -> Result<Self, QemuError> {
         check_elf(elf)?;
         if Command::new("qemu-system-arm")
             .arg("--version")
@@ -162,6 +173,7 @@ impl QemuBoard {
                 "-monitor",
                 "none",
             ])
+            .args(extra_args)
             .args(["-semihosting-config", "enable=on,target=native"])
             .arg("-chardev")
             .arg(format!(

@@ -21,9 +21,7 @@ use shared::app::pick::settings::PickSettings;
 use shared::app::pick::{PickController, MAX_TICK_MESSAGES};
 use shared::protocol::{FaultCause, GripperCommand, Message, PickPhase, SensorSample};
 
-use super::channels::{
-    CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, SAMPLES, TRIGGERS, WORK,
-};
+use super::channels::{CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, SAMPLES, TRIGGERS, WORK};
 use super::stats;
 use crate::board::{active, ControlSource, CycleCounter, PlantIo};
 
@@ -102,11 +100,7 @@ async fn next_sample(
 }
 
 #[embassy_executor::task]
-pub async fn control_loop(
-    mut plant: active::Plant,
-    cycles: active::Cycles,
-    source: ControlSource,
-) {
+pub async fn control_loop(mut plant: active::Plant, cycles: active::Cycles, source: ControlSource) {
     plant.disable();
     let mut pick: Option<(u32, PickController)> = None;
     let mut reported_estimate = 0u32;
@@ -187,7 +181,10 @@ pub async fn control_loop(
                 None => defmt::info!("pick: {}", defmt::Debug2Format(&phase)),
             }
         }
-        let cost = cycles.now().wrapping_sub(started).saturating_mul(cycles.scale());
+        let cost = cycles
+            .now()
+            .wrapping_sub(started)
+            .saturating_mul(cycles.scale());
         stats::record_control(cost, cost > budget, controller.counters().late_results);
     }
 }

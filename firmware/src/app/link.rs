@@ -76,9 +76,7 @@ impl Session {
                 self.pair(frame);
                 self.responder.handle(message)
             }
-            Message::RuntimeReportRequest => {
-                Some(Message::RuntimeReport(stats::report(self.unit)))
-            }
+            Message::RuntimeReportRequest => Some(Message::RuntimeReport(stats::report(self.unit))),
             _ => self.responder.handle(message),
         }
     }

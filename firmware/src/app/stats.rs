@@ -98,6 +98,7 @@ pub fn report(unit: CostUnit) -> RuntimeReport {
             .unwrap_or(0);
         RuntimeReport {
             unit,
+            uptime_us: embassy_time::Instant::now().as_micros(),
             control_ticks: costs.control_ticks,
             control_worst: costs.control_worst,
             control_mean: mean,
@@ -118,20 +119,22 @@ pub mod stack {
     /// The paint: a word no real frame is likely to hold by chance.
     const PAINT: u32 = 0xC0FF_EE55;
     /// Stacks deeper than this are reported as "at least" this deep (the
-    /// emulated board has 4 MiB of RAM; painting it all would slow the boot).
-    const MAX_PAINTED_BYTES: usize = 128 * 1024;
+    /// emulated board has 4 MiB of RAM; painting it all would slow the boot;
+    /// the STM32F407's stack is 128 KiB).
+    const MAX_PAINTED_BYTES: usize = 1024 * 1024;
 
     unsafe extern "C" {
         /// Top of the stack (cortex-m-rt: end of RAM).
         static _stack_start: u32;
-        /// Lowest address the stack may reach (cortex-m-rt: end of .bss/.uninit).
-        static _stack_end: u32;
+        /// Lowest address the stack may reach (the board's memory.x: the end of
+        /// the static data, or the start of a RAM block of its own).
+        static _stack_limit: u32;
     }
 
     fn bounds() -> (usize, usize) {
         // Only the symbols' addresses are taken, never their values.
         let top = core::ptr::addr_of!(_stack_start) as usize;
-        let bottom = core::ptr::addr_of!(_stack_end) as usize;
+        let bottom = core::ptr::addr_of!(_stack_limit) as usize;
         (bottom.max(top.saturating_sub(MAX_PAINTED_BYTES)), top)
     }
 
@@ -146,8 +149,8 @@ pub mod stack {
         while address < end {
             // SAFETY: [bottom, sp - 256) is stack memory below every live frame
             // (the stack grows down from `_stack_start`, and nothing else is
-            // placed between `_stack_end` and it); nothing reads it before it
-            // is used as stack.
+            // placed between `_stack_limit` and it); nothing reads it before
+            // it is used as stack.
             unsafe { core::ptr::write_volatile(address as *mut u32, PAINT) };
             address += 4;
         }

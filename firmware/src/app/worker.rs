@@ -64,7 +64,10 @@ pub async fn worker_task(cycles: active::Cycles) {
         let started = cycles.now();
         let news = pick_worker.process(&item);
         if matches!(item, WorkItem::Job(_)) {
-            let cost = cycles.now().wrapping_sub(started).saturating_mul(cycles.scale());
+            let cost = cycles
+                .now()
+                .wrapping_sub(started)
+                .saturating_mul(cycles.scale());
             stats::record_job(cost);
             defmt::info!("worker: job done, {} {}", cost, cycles.unit());
         }

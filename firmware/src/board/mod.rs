@@ -55,6 +55,10 @@ pub enum BoardError {
     NonFiniteTorque { joint: usize },
     /// The board has no such device: the emulated board's encoders and
     /// servos are the simulator's, reached through the link in lock step.
+    #[cfg_attr(
+        not(feature = "board-qemu"),
+        allow(dead_code, reason = "only the emulated board lacks its own devices")
+    )]
     NotOnThisBoard { device: &'static str },
 }
 

@@ -10,8 +10,8 @@ use std::time::{Duration, Instant};
 use heapless::{String as HString, Vec as HVec};
 use shared::protocol::{
     ActuatorCommand, CameraFeatureFrame, ControllerStatus, ErrorCode, GripperCommand, LabeledPoint,
-    Message, MessageKind, PointLabel, SensorSample, JOINTS, MAX_FEATURE_POINTS, MAX_FRAME_LEN,
-    PROTOCOL_VERSION,
+    Message, MessageKind, PointLabel, RuntimeReport, SensorSample, JOINTS, MAX_FEATURE_POINTS,
+    MAX_FRAME_LEN, PROTOCOL_VERSION,
 };
 
 use super::{ByteLink, FramedLink, LinkError};
@@ -209,6 +209,19 @@ impl<L: ByteLink> Session<L> {
             other => Err(CheckError::Unexpected {
                 index: 0,
                 expected: "Status".to_string(),
+                got: format!("{other:?}"),
+            }),
+        }
+    }
+
+    /// The controller's runtime report (costs, stack, uptime), asked for and awaited.
+    pub fn runtime_report(&mut self) -> Result<RuntimeReport, CheckError> {
+        self.link.send(&Message::RuntimeReportRequest)?;
+        match self.link.recv(self.reply_timeout, "RuntimeReport")? {
+            Message::RuntimeReport(report) => Ok(report),
+            other => Err(CheckError::Unexpected {
+                index: 0,
+                expected: "RuntimeReport".to_string(),
                 got: format!("{other:?}"),
             }),
         }

@@ -6,8 +6,7 @@ use heapless::String;
 
 use crate::protocol::{
     ControllerMode, ControllerStatus, DecodeError, ErrorCode, Message, MessageKind, RuntimeReport,
-    MAX_FRAME_LEN,
-    MAX_NAME_LEN, MAX_VERSION_LEN, PROTOCOL_VERSION,
+    MAX_FRAME_LEN, MAX_NAME_LEN, MAX_VERSION_LEN, PROTOCOL_VERSION,
 };
 
 /// Answers each decoded message; keeps the link's counters.

@@ -15,5 +15,7 @@ pub mod pick;
 pub mod tool;
 pub mod vision;
 
-pub use controller::{configure, new_calibration_report, ConfigRefused, ControllerApp, MAX_REPLIES};
+pub use controller::{
+    configure, new_calibration_report, ConfigRefused, ControllerApp, MAX_REPLIES,
+};
 pub use link::LinkResponder;

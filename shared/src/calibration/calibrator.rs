@@ -632,6 +632,9 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
 
     /// The starting point of the refinement: robust virtual rotation, all-frame Eq 8 and
     /// all-sighting Eq 15.
+    // Never inlined: its working set (homography, conic, Eqs 3 to 15) is not
+    // on the stack while the bundle adjustment runs (firmware stack budget).
+    #[inline(never)]
     fn initial_model(&self) -> Result<WorkcellModel, CalibrationError> {
         self.check_reference_count()?;
         self.check_rotation_span()?;

@@ -300,12 +300,42 @@ fn robust_sigma(problem: &Problem<'_>, model: &WorkcellModel, nominal_sigma: f64
     nominal_sigma * RANGE_SIGMAS
 }
 
+/// The fit of both phases before its covariance.
+struct Fit {
+    model: WorkcellModel,
+    rms_px: f64,
+    outliers: u32,
+    gate_px: f64,
+}
+
 /// Runs both phases and reports the fit.
+///
+/// The two halves are separate, never-inlined functions so that their large
+/// locals (each `PARAMETERS x PARAMETERS` matrix is 9 KiB) are never on the
+/// stack at the same time: on the firmware the estimate runs in 128 KiB.
+#[inline(never)]
 pub fn refine(
     problem: &Problem<'_>,
     start: WorkcellModel,
     config: &CalibrationConfig,
 ) -> Result<Refined, CalibrationError> {
+    let fit = fit(problem, start, config)?;
+    let covariance = covariance_at(problem, &fit.model, fit.gate_px, fit.rms_px);
+    Ok(Refined {
+        model: fit.model,
+        rms_px: fit.rms_px,
+        outliers: fit.outliers,
+        covariance,
+    })
+}
+
+/// Both robust phases, then the residual statistics at the optimum.
+#[inline(never)]
+fn fit(
+    problem: &Problem<'_>,
+    start: WorkcellModel,
+    config: &CalibrationConfig,
+) -> Result<Fit, CalibrationError> {
     let sigma = config.pixel_sigma;
     let phase1 = Loss {
         huber_px: config.huber_k * sigma,
@@ -341,12 +371,27 @@ pub fn refine(
         });
     }
     let rms_px = libm::sqrt(sum_squares / f64::from(kept));
-    // Covariance of the Gauss-Newton fit at the optimum, with the measured noise level.
+    Ok(Fit {
+        model,
+        rms_px,
+        outliers,
+        gate_px: gate,
+    })
+}
+
+/// Covariance of the Gauss-Newton fit at the optimum, with the measured noise level.
+#[inline(never)]
+fn covariance_at(
+    problem: &Problem<'_>,
+    model: &WorkcellModel,
+    gate: f64,
+    rms_px: f64,
+) -> Option<Normal> {
     let unit = Loss {
         huber_px: f64::INFINITY,
         gate_px: Some(gate),
     };
-    let (mut normal, _) = normal_equations(problem, &model, &unit);
+    let (mut normal, _) = normal_equations(problem, model, &unit);
     for i in 0..PARAMETERS {
         if frozen(problem, i) {
             for j in 0..PARAMETERS {
@@ -361,22 +406,17 @@ pub fn refine(
         }
     }
     let variance = (rms_px * rms_px / 2.0).max(1e-30);
-    let covariance = normal.try_inverse().map(|inverse| {
-        let mut scaled = inverse * variance;
-        // Frozen parameters are known exactly.
-        for i in 0..PARAMETERS {
-            if frozen(problem, i) {
-                if let Some(e) = scaled.get_mut((i, i)) {
-                    *e = 0.0;
-                }
+    if !normal.try_inverse_mut() {
+        return None;
+    }
+    normal *= variance;
+    // Frozen parameters are known exactly.
+    for i in 0..PARAMETERS {
+        if frozen(problem, i) {
+            if let Some(e) = normal.get_mut((i, i)) {
+                *e = 0.0;
             }
         }
-        scaled
-    });
-    Ok(Refined {
-        model,
-        rms_px,
-        outliers,
-        covariance,
-    })
+    }
+    Some(normal)
 }

@@ -136,7 +136,8 @@ impl<T: RealField + Copy> TaskPath<T> for ArcMove<T> {
         let (r, phi, z, yaw) = (p.x, p.y, p.z, p.w);
         let (rd, phid, zd, yawd) = (v.x, v.y, v.z, v.w);
         let (rdd, phidd, zdd, yawdd) = (a.x, a.y, a.z, a.w);
-        let (s, c) = phi.sin_cos();
+        // Sampled every control period: the control loop's sine and cosine.
+        let (s, c) = crate::control::trig::sin_cos(phi);
         let radial = Vector3::new(c, s, T::zero());
         let tangential = Vector3::new(-s, c, T::zero());
         let two: T = convert(2.0);

@@ -201,6 +201,8 @@ pub enum CostUnit {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct RuntimeReport {
     pub unit: CostUnit,
+    /// Microseconds since boot on the controller's clock (0: not measured).
+    pub uptime_us: u64,
     /// Control periods run.
     pub control_ticks: u64,
     /// One control period (sample in to command out): worst and mean.
@@ -228,6 +230,7 @@ impl RuntimeReport {
     pub const fn not_measured(control_ticks: u64) -> Self {
         Self {
             unit: CostUnit::NotMeasured,
+            uptime_us: 0,
             control_ticks,
             control_worst: 0,
             control_mean: 0,

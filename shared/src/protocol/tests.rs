@@ -160,6 +160,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                     1 => CostUnit::Instructions,
                     _ => CostUnit::Cycles,
                 },
+                uptime_us: ticks / 3,
                 control_ticks: ticks,
                 control_worst: v[0],
                 control_mean: v[1],

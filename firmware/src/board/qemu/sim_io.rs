@@ -37,9 +37,7 @@ impl LockStepPlant {
 
 impl PlantIo for LockStepPlant {
     fn read_sample(&mut self) -> Result<(JointCounts, u32), BoardError> {
-        Err(BoardError::NotOnThisBoard {
-            device: "encoders",
-        })
+        Err(BoardError::NotOnThisBoard { device: "encoders" })
     }
 
     fn apply(

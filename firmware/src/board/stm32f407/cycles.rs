@@ -4,11 +4,16 @@
 
 use cortex_m::peripheral::{DCB, DWT};
 
+use shared::protocol::CostUnit;
+
 use crate::board::CycleCounter;
 
-/// Owns the DWT so nothing else can stop or reset the counter.
+/// A reader of the cycle counter. `start` consumes the DWT and DCB handles,
+/// so nothing else can stop or reset the counter; the readers (one per task
+/// that measures) only read it.
+#[derive(Clone, Copy)]
 pub struct DwtCycles {
-    _dwt: DWT,
+    _private: (),
 }
 
 impl DwtCycles {
@@ -17,7 +22,7 @@ impl DwtCycles {
     pub fn start(mut dcb: DCB, mut dwt: DWT) -> Self {
         dcb.enable_trace();
         dwt.enable_cycle_counter();
-        DwtCycles { _dwt: dwt }
+        DwtCycles { _private: () }
     }
 }
 
@@ -30,7 +35,7 @@ impl CycleCounter for DwtCycles {
         1
     }
 
-    fn unit(&self) -> &'static str {
-        "cycles"
+    fn cost_unit(&self) -> CostUnit {
+        CostUnit::Cycles
     }
 }

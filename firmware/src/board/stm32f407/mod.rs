@@ -30,11 +30,11 @@ mod servo;
 mod sign_magnitude;
 
 use defmt_rtt as _;
-use embassy_stm32::bind_interrupts;
 use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::peripherals::USART2;
 use embassy_stm32::timer::qei::Qei;
 use embassy_stm32::usart::{BufferedInterruptHandler, BufferedUart, Config as UartConfig};
+use embassy_stm32::{bind_interrupts, interrupt};
 use panic_probe as _;
 
 pub use cycles::DwtCycles;
@@ -58,6 +58,27 @@ pub type Cycles = DwtCycles;
 
 /// Name reported in `HelloAck`.
 pub const BOARD_NAME: &str = "stm32f407";
+
+/// The core clock ([`clock`]): a control period's budget in cycles is
+/// `CPU_HZ / rate`.
+pub const CPU_HZ: u32 = 168_000_000;
+
+/// Spare NVIC lines for the interrupt executors: UART4 and UART5, whose
+/// peripherals this firmware never enables.
+pub const CONTROL_IRQ: u16 = interrupt::UART4 as u16;
+pub const LINK_IRQ: u16 = interrupt::UART5 as u16;
+
+/// The control loop's interrupt executor.
+#[interrupt]
+fn UART4() {
+    crate::executor::on_interrupt(crate::executor::Level::Control);
+}
+
+/// The link's interrupt executor.
+#[interrupt]
+fn UART5() {
+    crate::executor::on_interrupt(crate::executor::Level::Link);
+}
 
 const LINK_BAUD: u32 = 115_200;
 const UART_BUFFER_LEN: usize = 512;

@@ -45,7 +45,7 @@ use self::worker::PickWorker;
 use super::joint_observer::JointObserver;
 use super::tool::{tool_point_base, TOOL_LENGTH_M};
 use crate::calibration::SelfCalibrator;
-use crate::control::{ControllerConfig, TaskReference, TaskSpaceController};
+use crate::control::{ControllerConfig, TaskReference, TaskSpaceController, TaskSpaceModel};
 use crate::fusion::conveyor::wrap_pi;
 use crate::fusion::{ConveyorFilter, ConveyorState, LatchedSample};
 use crate::planning::{ArcLimits, ArcMove, ArcPoint, InterceptPlan, PlanError, TaskState};
@@ -448,7 +448,9 @@ impl PickController {
             Err(_) => self.raise(FaultCause::ConveyorEncoder),
         }
         let q = self.observer.q();
-        let flange = self.model.forward_kinematics(&q);
+        let flange = self
+            .model
+            .forward_kinematics_with(&TaskSpaceModel::configuration(&self.model, &q));
         self.tool_measured = tool_point_base(&flange);
         let x_axis = flange.rotation * Vector3::x();
         self.tool_yaw_measured = libm::atan2f(x_axis.y, x_axis.x);

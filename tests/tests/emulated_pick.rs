@@ -1,0 +1,194 @@
+//! The pick with the firmware in the loop: the emulated-board firmware in
+//! qemu-system-arm (`-icount shift=0`, so it counts instructions) is the
+//! controller, host-sim's world is the plant, in lock step over the emulated
+//! UART. The same seed run against the in-process controller must give the
+//! same outcome, and the firmware's own report gives the control cycle's
+//! worst cost, the worker's jobs and the stack's high-water mark.
+
+use std::time::{Duration, Instant};
+
+use host_sim::link::{FramedLink, TcpLink};
+use host_sim::pick::record::{PickResult, PickRun};
+use host_sim::pick::runner::{run_pick, run_pick_in_process};
+use host_sim::pick::scenario::PickScenarioFile;
+use integration_tests::qemu::{firmware_elf_path, QemuBoard};
+use shared::protocol::{CostUnit, Message, RuntimeReport};
+
+/// The emulated run's experiment: the paper's experiment 2 with the 7 cm part
+/// (the shortest of the four; the conveyor stops before the pick).
+const EXPERIMENT: &str = "experiment-2-7cm";
+const SEED: u64 = 1;
+
+/// What the firmware is held to here: the worst control period seen in this
+/// run is about 55,000 instructions (mean 41,000; README). Issue 6's goal is
+/// 15,000 and is not met yet; this limit catches a regression (a period that
+/// no longer fits 1 kHz at 168 MHz with margin), not the goal.
+const CONTROL_CYCLE_LIMIT: u32 = 100_000;
+/// The deepest stack seen is the worker's estimate, about 140 KiB (README):
+/// more than the STM32F407's 128 KiB of RAM; not met yet either. The limit
+/// catches growth.
+const STACK_LIMIT_BYTES: u32 = 192 * 1024;
+
+fn runtime_report<L: host_sim::link::ByteLink>(link: &mut FramedLink<L>) -> RuntimeReport {
+    link.send(&Message::RuntimeReportRequest)
+        .unwrap_or_else(|e| panic!("runtime report request: {e}"));
+    loop {
+        match link.recv(Duration::from_secs(30), "RuntimeReport") {
+            Ok(Message::RuntimeReport(report)) => return report,
+            // What the last control period queued behind its command.
+            Ok(Message::Telemetry(_) | Message::CalibrationReport(_)) => continue,
+            Ok(other) => panic!("expected a RuntimeReport, got {other:?}"),
+            Err(e) => panic!("runtime report: {e}"),
+        }
+    }
+}
+
+fn norm(e: [f64; 3]) -> f64 {
+    (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt()
+}
+
+fn summary(run: &PickRun) -> String {
+    let grasp = run.grasp.as_ref();
+    format!(
+        "{:?} after {:.1} s, calibrated at {:?} s, grasp error {:?} m, estimate error {:?} m",
+        run.result,
+        run.duration_s,
+        run.calibrated_after_s,
+        grasp.map(|g| g.position_error_m),
+        grasp.and_then(|g| g.estimate_error_m)
+    )
+}
+
+#[test]
+fn the_emulated_firmware_picks_the_part_as_the_in_process_controller_does() {
+    let experiment = PickScenarioFile::embedded_default()
+        .and_then(|file| file.experiment(EXPERIMENT).cloned())
+        .unwrap_or_else(|e| panic!("{e:#}"));
+    let elf = firmware_elf_path();
+    let mut board = QemuBoard::start_counting_instructions(&elf).unwrap_or_else(|e| panic!("{e}"));
+    let tcp = match TcpLink::connect(&board.uart_addr(), Duration::from_secs(10)) {
+        Ok(link) => link,
+        Err(e) => {
+            board.check_running().unwrap_or_else(|q| panic!("{q}"));
+            panic!("{e}");
+        }
+    };
+    let mut link = FramedLink::new(tcp);
+    let started = Instant::now();
+    let emulated = run_pick(&experiment, SEED, &mut link).unwrap_or_else(|e| {
+        board.check_running().unwrap_or_else(|q| panic!("{q}"));
+        panic!("the pick against the emulated firmware: {e:#}")
+    });
+    let wall = started.elapsed();
+    let report = runtime_report(&mut link);
+    board.check_running().unwrap_or_else(|e| panic!("{e}"));
+
+    let in_process = run_pick_in_process(&experiment, SEED).unwrap_or_else(|e| panic!("{e:#}"));
+    eprintln!(
+        "emulated firmware: {} [{:.0} s wall]",
+        summary(&emulated),
+        wall.as_secs_f64()
+    );
+    eprintln!("in process:        {}", summary(&in_process));
+    eprintln!("firmware report: {report:?}");
+
+    assert_eq!(
+        emulated.result,
+        PickResult::Success,
+        "{}",
+        summary(&emulated)
+    );
+    let grasp = emulated
+        .grasp
+        .as_ref()
+        .unwrap_or_else(|| panic!("no grasp"));
+    let estimate_error = grasp.estimate_error_m.map_or(f64::INFINITY, norm);
+    assert!(estimate_error < 0.005, "estimate error {estimate_error} m");
+    let grasp_error = norm(grasp.position_error_m);
+    assert!(grasp_error < 0.005, "grasp error {grasp_error} m");
+
+    // The same code on the same inputs, and every job result applied at its
+    // fixed due time: the same run, up to rounding. The M4's arithmetic and
+    // the host's differ in the last bit of some f32 results (seen from the
+    // first control period on), and the closed loop carries that on, so the
+    // comparison is of outcomes, with tolerances far below what matters to
+    // a pick: the same phases within 50 ms, the same calibrations within
+    // 0.1 mm and 0.1 mrad, the same grasp within 5 mm.
+    assert_eq!(emulated.result, in_process.result);
+    assert_eq!(
+        emulated.phases.len(),
+        in_process.phases.len(),
+        "phase sequences differ"
+    );
+    for (a, b) in emulated.phases.iter().zip(&in_process.phases) {
+        assert_eq!(a.phase, b.phase, "phase sequences differ");
+        assert!((a.t_s - b.t_s).abs() <= 0.05, "{a:?} vs {b:?}");
+    }
+    assert_eq!(emulated.calibrations.len(), in_process.calibrations.len());
+    for (a, b) in emulated.calibrations.iter().zip(&in_process.calibrations) {
+        let (a, b) = (&a.report, &b.report);
+        assert_eq!(a.time_us, b.time_us);
+        assert_eq!(a.frames_used, b.frames_used);
+        assert_eq!(a.effector_frames_used, b.effector_frames_used);
+        for (x, y) in a.base_translation_m.iter().zip(&b.base_translation_m) {
+            assert!((x - y).abs() < 1e-4, "base translation {a:?} vs {b:?}");
+        }
+        for (x, y) in a.part_rotating_m.iter().zip(&b.part_rotating_m) {
+            assert!((x - y).abs() < 1e-4, "part {a:?} vs {b:?}");
+        }
+        assert!((a.base_yaw_rad - b.base_yaw_rad).abs() < 1e-4);
+        assert!((a.part_yaw_rotating_rad - b.part_yaw_rotating_rad).abs() < 1e-4);
+    }
+    let in_process_grasp = in_process
+        .grasp
+        .as_ref()
+        .unwrap_or_else(|| panic!("no grasp"));
+    assert_eq!(grasp.succeeded, in_process_grasp.succeeded);
+    let gap = norm([
+        grasp.position_error_m[0] - in_process_grasp.position_error_m[0],
+        grasp.position_error_m[1] - in_process_grasp.position_error_m[1],
+        grasp.position_error_m[2] - in_process_grasp.position_error_m[2],
+    ]);
+    assert!(gap < 0.005, "grasps {gap} m apart");
+
+    assert_eq!(report.unit, CostUnit::Instructions);
+    assert!(report.control_ticks > 50_000, "{report:?}");
+    assert!(report.jobs_run >= 3, "{report:?}");
+    assert!(
+        report.control_worst >= report.control_mean && report.control_mean > 1_000,
+        "{report:?}"
+    );
+    assert!(
+        report.control_worst <= CONTROL_CYCLE_LIMIT,
+        "worst control cycle {} instructions",
+        report.control_worst
+    );
+    assert!(
+        report.stack_used_bytes > 1_024 && report.stack_used_bytes < report.stack_size_bytes,
+        "stack {} of {} bytes",
+        report.stack_used_bytes,
+        report.stack_size_bytes
+    );
+    assert!(report.stack_used_bytes <= STACK_LIMIT_BYTES, "{report:?}");
+    // Lock step: the loop waits for a due result instead of missing a deadline.
+    assert_eq!(report.late_results, 0, "{report:?}");
+    assert_eq!(report.messages_dropped, 0, "{report:?}");
+    assert_eq!(report.handoffs_dropped, 0, "{report:?}");
+    let figures = format!(
+        "{{\"experiment\":\"{EXPERIMENT}\",\"seed\":{SEED},\"wall_s\":{:.1},\"control_ticks\":{},\
+         \"control_worst_instructions\":{},\"control_mean_instructions\":{},\"jobs_run\":{},\
+         \"job_worst_instructions\":{},\"stack_used_bytes\":{},\"deadline_misses_at_168mhz\":{}}}\n",
+        wall.as_secs_f64(),
+        report.control_ticks,
+        report.control_worst,
+        report.control_mean,
+        report.jobs_run,
+        report.job_worst,
+        report.stack_used_bytes,
+        report.deadline_misses
+    );
+    let out = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/emulated-pick.json");
+    if let Err(e) = std::fs::write(&out, figures) {
+        eprintln!("cannot write {}: {e}", out.display());
+    }
+}
