@@ -62,6 +62,26 @@ enum SightingPoints {
     Invalid,
 }
 
+/// Largest focal length, and inverse of the smallest, in image sides (`f_px /
+/// max(width, height)`): 1e3 is a field of view of 0.06 degree, 1e-3 one of 179.9
+/// degrees. Beyond either, every pixel ray is numerically the optical axis (or
+/// the image plane) and Step 2's conic degenerates.
+const MAX_FOCAL_IN_SIDES: f64 = 1e3;
+/// How far the principal point may lie from the image centre, in image sides.
+const MAX_PRINCIPAL_OFFSET_IN_SIDES: f64 = 10.0;
+/// Range of the paper's L, metres. Every length the calibration estimates scales
+/// with L; outside these bounds their squares in the refinement overflow or lose
+/// all precision (a disc of 1e250 m gave a "singular" virtual rotation rather
+/// than an error naming the header field).
+const REFERENCE_RADIUS_RANGE_M: (f64, f64) = (1e-3, 1e3);
+/// Largest conveyor angle accepted, radians (159,000 revolutions, 18 days at the
+/// paper's 10 s a turn). Up to it an f64 angle resolves 1.2e-10 rad; at 1e300 it
+/// resolves nothing, and the frame would silently join the fit with a random angle.
+pub const MAX_CONVEYOR_ANGLE_RAD: f64 = 1e6;
+/// Largest coordinate of an end-effector point in the base frame, metres (the
+/// PUMA reaches under a metre; a point kilometres away is a unit or sensor error).
+pub const MAX_EFFECTOR_COORDINATE_M: f64 = 1e3;
+
 fn finite(pixel: &PixelPoint) -> bool {
     pixel.iter().all(|v| v.is_finite())
 }
@@ -72,17 +92,30 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         if header.version != LOG_VERSION {
             return Err(CalibrationError::InvalidHeader { field: "version" });
         }
-        if !(camera.f_px.is_finite() && camera.f_px > 0.0) {
+        let side_px = f64::from(camera.width.max(camera.height));
+        let focal_in_sides = camera.f_px / side_px;
+        if !(camera.f_px.is_finite()
+            && camera.f_px > 0.0
+            && (1.0 / MAX_FOCAL_IN_SIDES..=MAX_FOCAL_IN_SIDES).contains(&focal_in_sides))
+        {
             return Err(CalibrationError::InvalidHeader {
                 field: "camera.f_px",
             });
         }
-        if !(camera.cx.is_finite() && camera.cy.is_finite()) {
-            return Err(CalibrationError::InvalidHeader {
-                field: "camera.cx/cy",
-            });
+        let offset_limit_px = MAX_PRINCIPAL_OFFSET_IN_SIDES * side_px;
+        for (centre_px, size_px, field) in [
+            (camera.cx, camera.width, "camera.cx"),
+            (camera.cy, camera.height, "camera.cy"),
+        ] {
+            let offset_px = centre_px - 0.5 * f64::from(size_px);
+            if !(offset_px.is_finite() && offset_px.abs() <= offset_limit_px) {
+                return Err(CalibrationError::InvalidHeader { field });
+            }
         }
-        if !(header.reference_radius_m.is_finite() && header.reference_radius_m > 0.0) {
+        let (min_radius_m, max_radius_m) = REFERENCE_RADIUS_RANGE_M;
+        if !(header.reference_radius_m.is_finite()
+            && (min_radius_m..=max_radius_m).contains(&header.reference_radius_m))
+        {
             return Err(CalibrationError::InvalidHeader {
                 field: "reference_radius_m",
             });
@@ -172,6 +205,13 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         if !frame.conveyor_angle_rad.is_finite() {
             return Err(non_finite("conveyor_angle_rad"));
         }
+        if frame.conveyor_angle_rad.abs() > MAX_CONVEYOR_ANGLE_RAD {
+            return Err(CalibrationError::ValueOutOfRange {
+                frame: index,
+                field: "conveyor_angle_rad",
+                limit: MAX_CONVEYOR_ANGLE_RAD,
+            });
+        }
         if let Some(previous) = self.last_t_s {
             if frame.t_s < previous {
                 return Err(CalibrationError::TimeWentBackwards {
@@ -226,6 +266,18 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
             }
             if !sighting.base_m.iter().flatten().all(|v| v.is_finite()) {
                 return Err(non_finite("effector_base_m"));
+            }
+            if sighting
+                .base_m
+                .iter()
+                .flatten()
+                .any(|v| v.abs() > MAX_EFFECTOR_COORDINATE_M)
+            {
+                return Err(CalibrationError::ValueOutOfRange {
+                    frame: index,
+                    field: "effector_base_m",
+                    limit: MAX_EFFECTOR_COORDINATE_M,
+                });
             }
             let [b0, b1] = sighting.base_m;
             let distance_squared: f64 = b0

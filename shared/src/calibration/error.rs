@@ -25,6 +25,13 @@ pub enum CalibrationError {
     /// A detection lies outside the image (the contract says such a point is not
     /// detected, so a log holding one is malformed).
     OutsideImage { frame: u32, field: &'static str },
+    /// A finite value too large to mean anything (`|value| > limit`): a conveyor
+    /// angle f64 can no longer resolve, or an end-effector point kilometres away.
+    ValueOutOfRange {
+        frame: u32,
+        field: &'static str,
+        limit: f64,
+    },
     /// `part_px` holds `found` points but the header announced `expected`.
     WrongFeatureCount {
         frame: u32,
@@ -87,6 +94,10 @@ impl fmt::Display for CalibrationError {
             CalibrationError::OutsideImage { frame, field } => write!(
                 f,
                 "frame {frame}: field `{field}` lies outside the image (-0.5 <= u <= width - 0.5, likewise v)"
+            ),
+            CalibrationError::ValueOutOfRange { frame, field, limit } => write!(
+                f,
+                "frame {frame}: field `{field}` is out of range (its magnitude must be at most {limit:e})"
             ),
             CalibrationError::WrongFeatureCount { frame, expected, found } => write!(
                 f,
