@@ -121,5 +121,9 @@ fuzz_target!(|data: &[u8]| {
     let n = encode_frame(&probe, &mut frame).expect("probe encodes");
     let mut last = None;
     decoder.push_slice(&frame[..n], |r| last = Some(r));
-    assert_eq!(last, Some(Ok(probe)), "the link did not recover after a corrupted frame");
+    assert_eq!(
+        last,
+        Some(Ok(probe)),
+        "the link did not recover after a corrupted frame"
+    );
 });
