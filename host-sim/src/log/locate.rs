@@ -25,19 +25,20 @@ pub fn field_at(text: &[u8], end: usize) -> Option<String> {
     let mut escaped = false;
     let mut pending_key: Option<String> = None;
     for &byte in prefix {
-        if let Some((content, _)) = string.as_mut() {
+        if let Some((content, is_key)) = string.as_mut() {
+            // Only keys are kept: a value string may be megabytes long.
             if escaped {
                 escaped = false;
-                content.push(byte);
             } else if byte == b'\\' {
                 escaped = true;
+                continue;
             } else if byte == b'"' {
-                if let Some((content, is_key)) = string.take() {
-                    if is_key {
-                        pending_key = Some(String::from_utf8_lossy(&content).into_owned());
-                    }
+                if let Some((content, true)) = string.take() {
+                    pending_key = Some(String::from_utf8_lossy(&content).into_owned());
                 }
-            } else {
+                continue;
+            }
+            if *is_key {
                 content.push(byte);
             }
             continue;
