@@ -28,9 +28,15 @@ fuzz_target!(|data: &[u8]| {
                 let mut check = FrameDecoder::new();
                 let mut again = None;
                 check.push_slice(&frame[..n], |r| again = Some(r));
-                let again = again.expect("re-encoded frame completes").expect("and decodes");
+                let again = again
+                    .expect("re-encoded frame completes")
+                    .expect("and decodes");
                 let (frame2, n2) = wire(&again).expect("re-encodes");
-                assert_eq!(&frame[..n], &frame2[..n2], "decode/encode is not a fixed point");
+                assert_eq!(
+                    &frame[..n],
+                    &frame2[..n2],
+                    "decode/encode is not a fixed point"
+                );
             }
         });
     }
@@ -38,5 +44,9 @@ fuzz_target!(|data: &[u8]| {
     let (frame, n) = wire(&probe).expect("probe encodes");
     let mut last = None;
     decoder.push_slice(&frame[..n], |r| last = Some(r));
-    assert_eq!(last, Some(Ok(probe)), "the link did not recover after garbage");
+    assert_eq!(
+        last,
+        Some(Ok(probe)),
+        "the link did not recover after garbage"
+    );
 });

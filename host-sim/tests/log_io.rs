@@ -157,7 +157,7 @@ fn header_errors_name_line_one_and_the_field() {
     assert_error(
         parse_with_edit(1, "\"camera\":{", "\"camera\":[{"),
         1,
-        None,
+        Some("camera[1]"),
         "not valid JSON",
     );
 }
@@ -243,7 +243,7 @@ fn frame_errors_name_the_line_and_the_field() {
     assert_error(
         parse_with_edit(2, "\"part_px\":[[", "\"part_px\":{\"a\":[["),
         2,
-        None,
+        Some("part_px"),
         "not valid JSON",
     );
     assert_error(
@@ -348,7 +348,7 @@ fn non_finite_and_malformed_lines_name_the_line() {
     assert_error(
         parse_with_edit(3, "\"t_s\":0.125", "\"t_s\":NaN"),
         3,
-        None,
+        Some("t_s"),
         "not valid JSON",
     );
     let mut lines = valid_lines();
@@ -363,12 +363,16 @@ fn non_finite_and_malformed_lines_name_the_line() {
     assert_error(
         parse(&lines),
         3,
-        None,
+        Some("type"),
         "not valid JSON: EOF while parsing an object at column 15",
     );
     let bytes = [HEADER.as_bytes(), b"\n\xff\xfe\n"].concat();
     let error = read_log(Cursor::new(bytes)).expect_err("invalid UTF-8");
     assert_eq!(error.line, 2);
+    assert!(
+        error.to_string().contains("invalid UTF-8 at column 1"),
+        "{error}"
+    );
     assert_error(read_log(Cursor::new("")), 1, None, "the log is empty");
 }
 

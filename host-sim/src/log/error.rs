@@ -88,7 +88,9 @@ impl fmt::Display for LogProblem {
             }
             Self::TimeWentBackwards { t_s, previous_t_s } => write!(
                 f,
-                "t_s {t_s} is before the previous frame's t_s {previous_t_s} (must be non-decreasing)"
+                "t_s {} is before the previous frame's t_s {} (must be non-decreasing)",
+                Seconds(*t_s),
+                Seconds(*previous_t_s)
             ),
             Self::FeatureCount { expected, got } => write!(
                 f,
@@ -105,6 +107,21 @@ impl fmt::Display for LogProblem {
                 presence(*base_present)
             ),
             Self::MissingHeader => write!(f, "the log is empty: line 1 must be the header"),
+        }
+    }
+}
+
+/// A time in an error message: plain for everyday values, in exponent form when
+/// huge or tiny (a `t_s` of 1e300 would otherwise print 301 digits).
+struct Seconds(f64);
+
+impl fmt::Display for Seconds {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let magnitude = self.0.abs();
+        if magnitude == 0.0 || (1e-4..1e15).contains(&magnitude) {
+            write!(f, "{}", self.0)
+        } else {
+            write!(f, "{:e}", self.0)
         }
     }
 }

@@ -4,6 +4,7 @@
 
 pub mod error;
 mod fields;
+mod locate;
 pub mod reader;
 mod record;
 pub mod writer;

@@ -12,6 +12,7 @@ use shared::observation::{LogHeader, ObservationFrame};
 
 use super::error::{LogError, LogProblem};
 use super::fields::OUT_OF_RANGE_MARKER;
+use super::locate::field_at;
 use super::record::{parse_frame, parse_header};
 use super::ObservationLog;
 
@@ -56,12 +57,14 @@ fn read_bounded_line<R: BufRead>(
             buffer.pop();
         }
     } else if buffer.len() > max_line_bytes {
-        return Err(LogError::new(
-            line,
-            LogProblem::LineTooLong {
-                limit_bytes: max_line_bytes,
-            },
-        ));
+        let problem = LogProblem::LineTooLong {
+            limit_bytes: max_line_bytes,
+        };
+        // The field whose value runs past the cap, found in the part that was read.
+        return Err(match field_at(buffer, buffer.len()) {
+            Some(field) => LogError::at_field(line, field, problem),
+            None => LogError::new(line, problem),
+        });
     }
     Ok(true)
 }
@@ -109,9 +112,26 @@ fn json_message(error: &serde_json::Error) -> String {
 /// Parses one line. JSON has no NaN or infinity, but a literal such as `1e999`
 /// overflows f64: such literals are marked so that the decoder reports them as
 /// non-finite numbers naming their field, rather than as a bare syntax error.
+///
+/// A line that still does not parse (cut off, a `NaN` literal) is reported with
+/// the field the syntax error falls in, when it falls in one.
 fn parse_json(line: usize, bytes: &[u8]) -> Result<Value, LogError> {
-    let invalid =
-        |e: serde_json::Error| LogError::new(line, LogProblem::InvalidJson(json_message(&e)));
+    let invalid = |text: &[u8], e: serde_json::Error| {
+        let problem = LogProblem::InvalidJson(json_message(&e));
+        // serde_json's column is 1-based and counts bytes: the scan stops on the offending byte.
+        match field_at(text, e.column()) {
+            Some(field) => LogError::at_field(line, field, problem),
+            None => LogError::new(line, problem),
+        }
+    };
+    if let Err(e) = std::str::from_utf8(bytes) {
+        let at = e.valid_up_to();
+        let problem = LogProblem::InvalidJson(format!("invalid UTF-8 at column {}", at + 1));
+        return Err(match field_at(bytes, at) {
+            Some(field) => LogError::at_field(line, field, problem),
+            None => LogError::new(line, problem),
+        });
+    }
     let mut text = Cow::Borrowed(bytes);
     for _ in 0..MAX_OUT_OF_RANGE_NUMBERS {
         match serde_json::from_slice(&text) {
@@ -119,13 +139,13 @@ fn parse_json(line: usize, bytes: &[u8]) -> Result<Value, LogError> {
             Err(e) if e.to_string().starts_with("number out of range") => {
                 match mark_out_of_range(&text, e.column()) {
                     Some(marked) => text = Cow::Owned(marked),
-                    None => return Err(invalid(e)),
+                    None => return Err(invalid(&text, e)),
                 }
             }
-            Err(e) => return Err(invalid(e)),
+            Err(e) => return Err(invalid(&text, e)),
         }
     }
-    serde_json::from_slice(&text).map_err(invalid)
+    serde_json::from_slice(&text).map_err(|e| invalid(&text, e))
 }
 
 fn is_blank(bytes: &[u8]) -> bool {

@@ -62,6 +62,30 @@ enum SightingPoints {
     Invalid,
 }
 
+/// Largest focal length, and inverse of the smallest, in image sides (`f_px /
+/// max(width, height)`): 1e3 is a field of view of 0.06 degree, 1e-3 one of 179.9
+/// degrees. Beyond either, every pixel ray is numerically the optical axis (or
+/// the image plane) and Step 2's conic degenerates.
+const MAX_FOCAL_IN_SIDES: f64 = 1e3;
+/// How far the principal point may lie from the image centre, in image sides.
+const MAX_PRINCIPAL_OFFSET_IN_SIDES: f64 = 10.0;
+/// Range of the paper's L, metres. Every length the calibration estimates scales
+/// with L; outside these bounds their squares in the refinement overflow or lose
+/// all precision (a disc of 1e250 m gave a "singular" virtual rotation rather
+/// than an error naming the header field).
+const REFERENCE_RADIUS_RANGE_M: (f64, f64) = (1e-3, 1e3);
+/// Smallest spread of the reference track across its principal direction, in
+/// pixel sigmas: pure noise about a line gives one sigma; 2 needs an ellipse whose
+/// minor semi-axis is at least 2.4 sigmas (1.2 px at the paper's 0.5 px).
+const MIN_TRACK_SPREAD_IN_SIGMAS: f64 = 2.0;
+/// Largest conveyor angle accepted, radians (159,000 revolutions, 18 days at the
+/// paper's 10 s a turn). Up to it an f64 angle resolves 1.2e-10 rad; at 1e300 it
+/// resolves nothing, and the frame would silently join the fit with a random angle.
+pub const MAX_CONVEYOR_ANGLE_RAD: f64 = 1e6;
+/// Largest coordinate of an end-effector point in the base frame, metres (the
+/// PUMA reaches under a metre; a point kilometres away is a unit or sensor error).
+pub const MAX_EFFECTOR_COORDINATE_M: f64 = 1e3;
+
 fn finite(pixel: &PixelPoint) -> bool {
     pixel.iter().all(|v| v.is_finite())
 }
@@ -72,17 +96,30 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         if header.version != LOG_VERSION {
             return Err(CalibrationError::InvalidHeader { field: "version" });
         }
-        if !(camera.f_px.is_finite() && camera.f_px > 0.0) {
+        let side_px = f64::from(camera.width.max(camera.height));
+        let focal_in_sides = camera.f_px / side_px;
+        if !(camera.f_px.is_finite()
+            && camera.f_px > 0.0
+            && (1.0 / MAX_FOCAL_IN_SIDES..=MAX_FOCAL_IN_SIDES).contains(&focal_in_sides))
+        {
             return Err(CalibrationError::InvalidHeader {
                 field: "camera.f_px",
             });
         }
-        if !(camera.cx.is_finite() && camera.cy.is_finite()) {
-            return Err(CalibrationError::InvalidHeader {
-                field: "camera.cx/cy",
-            });
+        let offset_limit_px = MAX_PRINCIPAL_OFFSET_IN_SIDES * side_px;
+        for (centre_px, size_px, field) in [
+            (camera.cx, camera.width, "camera.cx"),
+            (camera.cy, camera.height, "camera.cy"),
+        ] {
+            let offset_px = centre_px - 0.5 * f64::from(size_px);
+            if !(offset_px.is_finite() && offset_px.abs() <= offset_limit_px) {
+                return Err(CalibrationError::InvalidHeader { field });
+            }
         }
-        if !(header.reference_radius_m.is_finite() && header.reference_radius_m > 0.0) {
+        let (min_radius_m, max_radius_m) = REFERENCE_RADIUS_RANGE_M;
+        if !(header.reference_radius_m.is_finite()
+            && (min_radius_m..=max_radius_m).contains(&header.reference_radius_m))
+        {
             return Err(CalibrationError::InvalidHeader {
                 field: "reference_radius_m",
             });
@@ -172,6 +209,13 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         if !frame.conveyor_angle_rad.is_finite() {
             return Err(non_finite("conveyor_angle_rad"));
         }
+        if frame.conveyor_angle_rad.abs() > MAX_CONVEYOR_ANGLE_RAD {
+            return Err(CalibrationError::ValueOutOfRange {
+                frame: index,
+                field: "conveyor_angle_rad",
+                limit: MAX_CONVEYOR_ANGLE_RAD,
+            });
+        }
         if let Some(previous) = self.last_t_s {
             if frame.t_s < previous {
                 return Err(CalibrationError::TimeWentBackwards {
@@ -226,6 +270,18 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
             }
             if !sighting.base_m.iter().flatten().all(|v| v.is_finite()) {
                 return Err(non_finite("effector_base_m"));
+            }
+            if sighting
+                .base_m
+                .iter()
+                .flatten()
+                .any(|v| v.abs() > MAX_EFFECTOR_COORDINATE_M)
+            {
+                return Err(CalibrationError::ValueOutOfRange {
+                    frame: index,
+                    field: "effector_base_m",
+                    limit: MAX_EFFECTOR_COORDINATE_M,
+                });
             }
             let [b0, b1] = sighting.base_m;
             let distance_squared: f64 = b0
@@ -289,6 +345,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
     pub fn paper_estimate(&self) -> Result<CalibrationResult, CalibrationError> {
         self.check_reference_count()?;
         self.check_rotation_span()?;
+        self.check_reference_spread()?;
         // The RLS conic and mean centre image, with gross outliers gated out first (the
         // paper's data had none; without the gate one stray detection can spoil Step 2).
         let conic = self.robust_conic()?;
@@ -329,7 +386,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
                             stage: "part localisation",
                         },
                     )?;
-                    let m = self.virtual_point(&rotation, pixel)?;
+                    let m = self.virtual_point(&rotation, pixel, "part_px")?;
                     Ok(geometry.affine_line(frame.theta, m))
                 };
             *slot = intersect_two_lines(line(first)?, line(second)?)?;
@@ -390,16 +447,18 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         }
     }
 
+    /// `pixel` (an image of `field`) in the virtual camera looking straight down the
+    /// disc's axis (Step 3). A ray that does not point down towards the disc plane has
+    /// no such image: the point is level with or above the camera.
     fn virtual_point(
         &self,
         rotation: &VirtualRotation,
         pixel: PixelF32,
+        field: &'static str,
     ) -> Result<Vector2<f64>, CalibrationError> {
         rotation
             .to_virtual(self.pinhole.ray(to_vector(pixel)))
-            .ok_or(CalibrationError::NumericalFailure {
-                stage: "virtual rotation of an image point",
-            })
+            .ok_or(CalibrationError::AboveCamera { field })
     }
 
     /// Mean image of the disc centre in ray coordinates; with `gate_px` only points within
@@ -533,6 +592,48 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         Ok(())
     }
 
+    /// The reference point's image track must be an ellipse the pixel noise cannot
+    /// fake: its spread across its own principal direction (the smallest standard
+    /// deviation of the detections) must exceed [`MIN_TRACK_SPREAD_IN_SIGMAS`] pixel
+    /// sigmas. A camera in (or grazing) the disc plane sees the track as a line, and
+    /// noise alone then fits a random conic, a random Step 2 and a confident wrong
+    /// answer (a camera in the plane was reported as "below the disc").
+    fn check_reference_spread(&self) -> Result<(), CalibrationError> {
+        let mut count = 0.0;
+        let mut sum = Vector2::<f64>::zeros();
+        let mut squares = nalgebra::Matrix2::<f64>::zeros();
+        for reference in self.frames.items().iter().filter_map(|f| f.reference) {
+            let pixel = to_vector(reference);
+            count += 1.0;
+            sum += pixel;
+            squares += pixel * pixel.transpose();
+        }
+        let points = || CalibrationError::DegenerateConic {
+            points: u32::try_from(
+                self.frames
+                    .items()
+                    .iter()
+                    .filter(|f| f.reference.is_some())
+                    .count(),
+            )
+            .unwrap_or(u32::MAX),
+        };
+        if !exceeds(count, 0.0) {
+            return Err(points());
+        }
+        let mean = sum / count;
+        let covariance = squares / count - mean * mean.transpose();
+        let (sxx, syy, sxy) = (covariance.m11, covariance.m22, covariance.m12);
+        let half_trace = 0.5 * (sxx + syy);
+        let half_gap = libm::sqrt(0.25 * (sxx - syy) * (sxx - syy) + sxy * sxy);
+        let smallest_variance_px2 = (half_trace - half_gap).max(0.0);
+        let needed_px = MIN_TRACK_SPREAD_IN_SIGMAS * self.config.pixel_sigma;
+        if !exceeds(smallest_variance_px2, needed_px * needed_px) {
+            return Err(points());
+        }
+        Ok(())
+    }
+
     fn check_rotation_span(&self) -> Result<(), CalibrationError> {
         let mut lowest = f64::INFINITY;
         let mut highest = f64::NEG_INFINITY;
@@ -576,7 +677,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
             let Some(reference) = frame.reference else {
                 continue;
             };
-            let m = self.virtual_point(rotation, reference)?;
+            let m = self.virtual_point(rotation, reference, "reference_px")?;
             let offset = m - rotation.centre_virtual;
             let angle = libm::atan2(offset.y, offset.x);
             let (sa, ca) = libm::sincos(angle + frame.theta);
@@ -607,10 +708,15 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         sighting: &EffectorRecord,
     ) -> Result<SightingPoints, CalibrationError> {
         let rotation = &geometry.rotation;
-        let m0 =
-            self.virtual_point(rotation, to_f32([sighting.pixel(0).x, sighting.pixel(0).y]))?;
-        let m1 =
-            self.virtual_point(rotation, to_f32([sighting.pixel(1).x, sighting.pixel(1).y]))?;
+        // A mark shown level with or above the camera has no depth on the disc side:
+        // that sighting is unusable, not the whole calibration.
+        let virtual_mark = |which: usize| {
+            let pixel = sighting.pixel(which);
+            self.virtual_point(rotation, to_f32([pixel.x, pixel.y]), "effector_px")
+        };
+        let (Ok(m0), Ok(m1)) = (virtual_mark(0), virtual_mark(1)) else {
+            return Ok(SightingPoints::Invalid);
+        };
         let (b0, b1) = (sighting.base_point(0), sighting.base_point(1));
         let pair =
             |(z0, z1): (f64, f64)| [geometry.disc_point(m0, z0), geometry.disc_point(m1, z1)];
@@ -638,6 +744,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
     fn initial_model(&self) -> Result<WorkcellModel, CalibrationError> {
         self.check_reference_count()?;
         self.check_rotation_span()?;
+        self.check_reference_spread()?;
         let geometry = match self.plane_pose() {
             Ok(pose) => VirtualGeometry {
                 rotation: VirtualRotation::from_pose(
@@ -711,7 +818,9 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
             let lines = || {
                 self.frames.items().iter().filter_map(move |frame| {
                     let pixel = frame.part.and_then(|part| part.get(index).copied())?;
-                    let m = self.virtual_point(&geometry.rotation, pixel).ok()?;
+                    let m = self
+                        .virtual_point(&geometry.rotation, pixel, "part_px")
+                        .ok()?;
                     Some(geometry.affine_line(frame.theta, m))
                 })
             };

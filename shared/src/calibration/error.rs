@@ -25,6 +25,13 @@ pub enum CalibrationError {
     /// A detection lies outside the image (the contract says such a point is not
     /// detected, so a log holding one is malformed).
     OutsideImage { frame: u32, field: &'static str },
+    /// A finite value too large to mean anything (`|value| > limit`): a conveyor
+    /// angle f64 can no longer resolve, or an end-effector point kilometres away.
+    ValueOutOfRange {
+        frame: u32,
+        field: &'static str,
+        limit: f64,
+    },
     /// `part_px` holds `found` points but the header announced `expected`.
     WrongFeatureCount {
         frame: u32,
@@ -45,13 +52,18 @@ pub enum CalibrationError {
         needed: u32,
         found: u32,
     },
-    /// The reference points do not pin down a conic: collinear or fewer than five distinct points.
+    /// The reference points do not pin down a conic: collinear (exactly, or within the
+    /// pixel noise: a camera in the disc plane) or fewer than five distinct points.
     DegenerateConic { points: u32 },
     /// The fitted conic is not an ellipse (Step 2).
     NotAnEllipse { kind: ConicKind },
     /// The reference point's image turns the wrong way as theta grows: the camera
     /// sees the disc from below (the spec requires a camera above the disc).
     CameraBelowDisc,
+    /// An image point of `field` is seen level with or above the camera, so its ray
+    /// never meets the disc plane below: the camera is (nearly) in the disc plane,
+    /// or the end effector was shown above the camera.
+    AboveCamera { field: &'static str },
     /// The conveyor angles absorbed so far span less than `needed_rad`: heights are unobservable.
     InsufficientRotation { span_rad: f64, needed_rad: f64 },
     /// No end-effector sighting has a unique root of Eq 10 with both points in front of the
@@ -88,6 +100,10 @@ impl fmt::Display for CalibrationError {
                 f,
                 "frame {frame}: field `{field}` lies outside the image (-0.5 <= u <= width - 0.5, likewise v)"
             ),
+            CalibrationError::ValueOutOfRange { frame, field, limit } => write!(
+                f,
+                "frame {frame}: field `{field}` is out of range (its magnitude must be at most {limit:e})"
+            ),
             CalibrationError::WrongFeatureCount { frame, expected, found } => write!(
                 f,
                 "frame {frame}: `part_px` has {found} points, the header says {expected}"
@@ -106,7 +122,7 @@ impl fmt::Display for CalibrationError {
             ),
             CalibrationError::DegenerateConic { points } => write!(
                 f,
-                "the {points} reference points do not determine a conic (collinear or fewer than 5 distinct)"
+                "the {points} reference points do not determine a conic (collinear, or on a line within the pixel noise as seen by a camera in the disc plane, or fewer than 5 distinct)"
             ),
             CalibrationError::NotAnEllipse { kind } => write!(
                 f,
@@ -114,6 +130,11 @@ impl fmt::Display for CalibrationError {
             ),
             CalibrationError::CameraBelowDisc => f.write_str(
                 "the reference point's image turns counter to theta: the camera is below the disc",
+            ),
+            CalibrationError::AboveCamera { field } => write!(
+                f,
+                "a point of `{field}` is seen level with or above the camera (its ray never reaches the disc plane): \
+                 mount the camera higher above the disc, or show the end effector below it"
             ),
             CalibrationError::InsufficientRotation { span_rad, needed_rad } => write!(
                 f,
