@@ -263,6 +263,7 @@ fn pick_tick(timer: &timer::DualTimer, model: &Puma560<f32>, q: &Joints<f32>) {
                 counts[0], counts[1], counts[2], counts[3], counts[4], counts[5],
             ],
             conveyor_counts: seq / 4,
+            part_in_gripper: false,
         }
     };
     // Into the search arc (the first sample starts it).

@@ -42,6 +42,7 @@ fn fallback_message(bytes: &[u8]) -> Message {
         time_us: u64::from(value) << 7,
         joint_counts: [value as i32, -(value as i32 >> 1), 3, 0, -7, 1 << 20],
         conveyor_counts: value.rotate_left(9),
+        part_in_gripper: value & 1 == 1,
     })
 }
 

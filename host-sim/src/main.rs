@@ -10,6 +10,7 @@ use host_sim::calibrate_cmd::{run_calibrate, CalibrateArgs};
 use host_sim::demo::{run_demo, DemoArgs};
 use host_sim::link;
 use host_sim::pick::command::{run_pick_command, PickArgs};
+use host_sim::pick::faults::{run_fault_campaign, FaultCampaignArgs};
 use host_sim::pick::montecarlo::{run_montecarlo, MonteCarloArgs};
 use host_sim::workcell::command::{run_record, RecordArgs};
 
@@ -28,6 +29,9 @@ enum Command {
     Run(PickArgs),
     /// Seeded Monte Carlo of the pick over random workcells: success rate and error percentiles.
     Montecarlo(MonteCarloArgs),
+    /// Seeded faulty picks (vision, encoder, conveyor, link and stall faults):
+    /// the table of fault against outcome, and every safety invariant checked.
+    Faults(FaultCampaignArgs),
     /// Self-calibration alone on one recorded workcell, against the paper's figures.
     CalibrationDemo(DemoArgs),
     /// Record a synthetic observation log (and LOG.truth.json) from a random workcell.
@@ -46,6 +50,7 @@ fn main() -> ExitCode {
         None => run_pick_command(&PickArgs::default()),
         Some(Command::Run(args)) => run_pick_command(args),
         Some(Command::Montecarlo(args)) => run_montecarlo(args),
+        Some(Command::Faults(args)) => run_fault_campaign(args),
         Some(Command::CalibrationDemo(args)) => run_demo(args),
         Some(Command::Record(args)) => run_record(args),
         Some(Command::Calibrate(args)) => run_calibrate(args),

@@ -84,11 +84,12 @@ async fn next_sample(
         ControlSource::Ticker => {
             ticker.next().await;
             match plant.read_sample() {
-                Ok((joint_counts, conveyor_counts)) => Some(SensorSample {
+                Ok(reading) => Some(SensorSample {
                     seq: TICKER_SEQ.fetch_add(1, Ordering::Relaxed),
                     time_us: Instant::now().as_micros(),
-                    joint_counts,
-                    conveyor_counts,
+                    joint_counts: reading.joint_counts,
+                    conveyor_counts: reading.conveyor_counts,
+                    part_in_gripper: reading.part_in_gripper,
                 }),
                 Err(e) => {
                     defmt::warn!("control loop: {}", e);

@@ -104,12 +104,21 @@ pub enum ControlSource {
     LockStep,
 }
 
+/// One reading of the plant's sensors.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PlantReading {
+    pub joint_counts: JointCounts,
+    pub conveyor_counts: u32,
+    pub part_in_gripper: bool,
+}
+
 /// The plant side of the control loop: encoders in, servo amplifiers, gripper
 /// and camera trigger out. Called only from the control loop, once per period.
 pub trait PlantIo {
-    /// Joint encoder counts (unwrapped, joint 1 first) and the conveyor
-    /// encoder's raw hardware counter (it wraps; the controller unwraps it).
-    fn read_sample(&mut self) -> Result<(JointCounts, u32), BoardError>;
+    /// Joint encoder counts (unwrapped, joint 1 first), the conveyor
+    /// encoder's raw hardware counter (it wraps; the controller unwraps it)
+    /// and the gripper's part-present switch.
+    fn read_sample(&mut self) -> Result<PlantReading, BoardError>;
 
     /// Drives the servo amplifiers with the joint torques (N m), the gripper,
     /// and pulses the camera trigger when `camera_trigger` is set. Rejects a

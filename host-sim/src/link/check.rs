@@ -413,6 +413,7 @@ impl<L: ByteLink> Session<L> {
                     time_us: rng.next() >> 20,
                     joint_counts,
                     conveyor_counts: rng.next() as u32,
+                    part_in_gripper: false,
                 })
             }
             _ => {

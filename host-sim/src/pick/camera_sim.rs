@@ -83,6 +83,11 @@ impl CameraSim {
         &self.camera
     }
 
+    /// The camera was knocked: from now on it sees from `camera`.
+    pub fn move_to(&mut self, camera: PinholeCamera) {
+        self.camera = camera;
+    }
+
     pub fn stats(&self) -> CameraStats {
         self.stats
     }

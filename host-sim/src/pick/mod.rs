@@ -5,10 +5,12 @@
 //! - [`world`], [`camera_sim`]: the simulated workcell.
 //! - [`runner`]: one pick in lock step over any link.
 //! - [`record`]: what a pick leaves behind; [`report`], [`plots`]: tables, CSV and PNG.
-//! - [`command`]: `host-sim run`; [`montecarlo`]: `host-sim montecarlo`.
+//! - [`command`]: `host-sim run`; [`montecarlo`]: `host-sim montecarlo`;
+//!   [`faults`]: `host-sim faults` (the pick under injected faults).
 
 pub mod camera_sim;
 pub mod command;
+pub mod faults;
 pub mod montecarlo;
 pub mod plots;
 pub mod record;

@@ -110,6 +110,10 @@ pub struct PickRun {
     /// Lowest height of the grasp point above the disc surface while over the
     /// disc (within 5 cm of its rim) and not holding the part, m.
     pub min_tool_clearance_m: f64,
+    /// The fastest joint's speed when the run ended, rad/s: a controlled stop
+    /// must leave the arm at rest.
+    #[serde(default)]
+    pub end_joint_speed_rad_s: f64,
 }
 
 impl PickRun {
@@ -135,6 +139,7 @@ impl PickRun {
             max_speed_ratio: f64::NAN,
             max_torque_ratio: f64::NAN,
             min_tool_clearance_m: f64::NAN,
+            end_joint_speed_rad_s: f64::NAN,
         }
     }
 }

@@ -570,6 +570,7 @@ pub fn synthetic_run(experiment: &str, records: usize) -> PickRun {
         max_speed_ratio: 0.6,
         max_torque_ratio: 0.7,
         min_tool_clearance_m: 0.02,
+        end_joint_speed_rad_s: 0.0,
     }
 }
 

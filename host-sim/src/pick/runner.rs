@@ -124,6 +124,18 @@ pub fn run_pick<L: ByteLink>(
         if ended_at.is_some_and(|t| now - t > SETTLE_AFTER_END_S) {
             break;
         }
+        if world.control_stalled() {
+            // No period runs: no sample read, no command; the drives' watchdog acts.
+            world
+                .apply_unattended()
+                .with_context(|| format!("world step (stalled) at t = {now:.3} s"))?;
+            let state = world.truth();
+            for j in 0..6 {
+                max_speed_ratio =
+                    max_speed_ratio.max(state.qd_rad_s[j].abs() / limits.velocity_max[j]);
+            }
+            continue;
+        }
         for frame in world.due_camera_frames() {
             link.send(&Message::CameraFeatures(frame))?;
         }
@@ -221,6 +233,11 @@ pub fn run_pick<L: ByteLink>(
     }
 
     let duration_s = world.time_s();
+    let end_joint_speed_rad_s = world
+        .truth()
+        .qd_rad_s
+        .iter()
+        .fold(0.0_f64, |worst, qd| worst.max(qd.abs()));
     let placed = world.placed_position_base();
     let placed_error_m = placed.map(|p| {
         let d = vector_sub(p, world.drop_off_base());
@@ -229,8 +246,9 @@ pub fn run_pick<L: ByteLink>(
     let final_phase = last_phase.unwrap_or(PickPhase::Idle);
     let result = match (final_phase, grasp.as_ref()) {
         (PickPhase::Done, Some(g)) if g.succeeded && placed.is_some() => PickResult::Success,
-        (_, Some(g)) if !g.succeeded => PickResult::GraspMissed,
+        // A missed grasp the controller noticed (part-present switch) and stopped for.
         (PickPhase::Faulted, _) => PickResult::Fault(last_fault.unwrap_or(FaultCause::Timeout)),
+        (_, Some(g)) if !g.succeeded => PickResult::GraspMissed,
         (phase, _) => PickResult::TimedOut(phase),
     };
     // The cell is calibrated when the controller starts to locate the part.
@@ -257,6 +275,7 @@ pub fn run_pick<L: ByteLink>(
         } else {
             f64::NAN
         },
+        end_joint_speed_rad_s,
     })
 }
 

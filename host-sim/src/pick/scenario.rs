@@ -43,6 +43,89 @@ pub struct PickExperiment {
     /// per seed; unknown to the controller).
     #[serde(default)]
     pub cell: CellSettings,
+    /// Faults the world injects during the run (none by default).
+    #[serde(default, skip_serializing_if = "WorldFaults::is_none")]
+    pub faults: WorldFaults,
+}
+
+/// Faults of the cell the world injects (issue 7's faults during a pick), each
+/// at a set time of the run. The camera's own settings carry its noise,
+/// dropouts, outliers and latency.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WorldFaults {
+    /// The camera is knocked to a new pose.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera_bump: Option<CameraBump>,
+    /// The link from the vision computer is down: no frame arrives in the window.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vision_outage: Option<FaultWindow>,
+    /// The control loop (or the controller's link to the drives) stalls: no
+    /// period runs in the window. The drives hold the last torque for
+    /// `DRIVE_WATCHDOG_S`, then brake the arm and hold it against gravity.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub control_stall: Option<FaultWindow>,
+    /// The conveyor encoder misses a burst of counts.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub missed_counts: Option<MissedCounts>,
+    /// The conveyor changes speed (stops, speeds up, reverses).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub conveyor_change: Option<SpeedChange>,
+    /// The conveyor counter starts this many counts below its wrap, so it
+    /// wraps early in the run (otherwise its start is drawn at random).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub counter_counts_before_wrap: Option<u32>,
+}
+
+impl WorldFaults {
+    pub fn is_none(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
+/// The camera's pose changes at `at_s`: turned by `rotation_deg` about its own
+/// x axis and moved `shift_m` along it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraBump {
+    pub at_s: f64,
+    pub rotation_deg: f64,
+    pub shift_m: f64,
+}
+
+/// A fault lasting from `at_s` for `duration_s`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FaultWindow {
+    pub at_s: f64,
+    pub duration_s: f64,
+}
+
+impl FaultWindow {
+    pub fn contains(&self, t_s: f64) -> bool {
+        t_s >= self.at_s && t_s < self.at_s + self.duration_s
+    }
+}
+
+/// From `at_s` the encoder stops counting until it has missed `counts` edges;
+/// with `instant`, its value jumps back by `counts` at once instead (a glitch).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MissedCounts {
+    pub at_s: f64,
+    pub counts: u32,
+    #[serde(default)]
+    pub instant: bool,
+}
+
+/// From `at_s` the disc's speed ramps at `acceleration_rad_s2` to `speed_rad_s`
+/// and stays there (no ripple).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpeedChange {
+    pub at_s: f64,
+    pub speed_rad_s: f64,
+    pub acceleration_rad_s2: f64,
 }
 
 /// Ranges of the cell's layout, drawn uniformly per seed.
@@ -246,6 +329,64 @@ impl PickScenarioFile {
     }
 }
 
+impl PickExperiment {
+    fn validate_faults(&self) -> Result<()> {
+        let f = &self.faults;
+        let time = |field: &str, t: f64| check(field, t, t >= 0.0, ">= 0");
+        if let Some(bump) = f.camera_bump {
+            time("faults.camera_bump.at_s", bump.at_s)?;
+            check(
+                "faults.camera_bump.rotation_deg",
+                bump.rotation_deg,
+                bump.rotation_deg.abs() <= 30.0,
+                "within +-30",
+            )?;
+            check(
+                "faults.camera_bump.shift_m",
+                bump.shift_m,
+                bump.shift_m.abs() <= 0.5,
+                "within +-0.5",
+            )?;
+        }
+        for (name, window) in [
+            ("vision_outage", f.vision_outage),
+            ("control_stall", f.control_stall),
+        ] {
+            if let Some(w) = window {
+                time(&format!("faults.{name}.at_s"), w.at_s)?;
+                check(
+                    &format!("faults.{name}.duration_s"),
+                    w.duration_s,
+                    w.duration_s > 0.0,
+                    "> 0",
+                )?;
+            }
+        }
+        if let Some(missed) = f.missed_counts {
+            time("faults.missed_counts.at_s", missed.at_s)?;
+        }
+        if let Some(change) = f.conveyor_change {
+            time("faults.conveyor_change.at_s", change.at_s)?;
+            check(
+                "faults.conveyor_change.speed_rad_s",
+                change.speed_rad_s,
+                change.speed_rad_s.abs() <= 5.0,
+                "within +-5",
+            )?;
+            check(
+                "faults.conveyor_change.acceleration_rad_s2",
+                change.acceleration_rad_s2,
+                change.acceleration_rad_s2 > 0.0,
+                "> 0",
+            )?;
+            if self.conveyor.stop.is_some() {
+                bail!("faults.conveyor_change needs an experiment without conveyor.stop");
+            }
+        }
+        Ok(())
+    }
+}
+
 /// `value` must satisfy `ok`; the error names the field and the rule.
 fn check(field: &str, value: f64, ok: bool, rule: &str) -> Result<()> {
     if value.is_finite() && ok {
@@ -325,6 +466,8 @@ impl PickExperiment {
                 "> 0",
             )?;
         }
+
+        self.validate_faults()?;
 
         let cam = &self.camera;
         if cam.frame_period_ms == 0 {

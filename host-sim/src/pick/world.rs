@@ -32,7 +32,7 @@ use super::scenario::PickExperiment;
 use crate::workcell::generator::DISC_RADIUS_M;
 use crate::workcell::scenario::{DiscPlacement, FeatureHeights};
 use crate::workcell::{random_workcell, Scenario, Workcell};
-use crate::world::conveyor::{Conveyor, ConveyorProfile, ConveyorStop};
+use crate::world::conveyor::{Conveyor, ConveyorProfile, ConveyorStop, MissedBurst, SpeedRamp};
 use crate::world::gripper::{try_grasp, GraspTolerance};
 use crate::world::plant::{JointEncoders, RobotPlant};
 
@@ -47,6 +47,12 @@ pub const DROP_OFF_TURN_RAD: f64 = 100.0 * PI / 180.0;
 const TOOL_PAYLOAD_COM_FLANGE_M: [f64; 3] = [0.0, 0.0, shared::app::tool::TOOL_LENGTH_M / 2.0];
 /// Telemetry period the world asks for, seconds (50 Hz).
 const TELEMETRY_PERIOD_S: f64 = 0.02;
+
+/// A drive given no new command holds the last one this long, then brakes.
+pub const DRIVE_WATCHDOG_S: f64 = 0.005;
+/// The brake's viscous coefficient, N m s/rad (it also holds the arm against
+/// gravity, as a holding brake does).
+const BRAKE_DAMPING_NM_S: f64 = 20.0;
 /// Step of the search for the stop instant, seconds; refined by bisection.
 const STOP_SEARCH_STEP_S: f64 = 0.01;
 
@@ -115,6 +121,10 @@ pub struct World {
     placed_base: Option<[f64; 3]>,
     last_tau: JointVector<f64>,
     drop_off_base: Vector3<f64>,
+    /// The camera was knocked to its new pose (the bump fault has happened).
+    camera_bumped: bool,
+    /// Consecutive periods without a command (a stall), for the drives' watchdog.
+    unattended_ticks: u64,
 }
 
 fn array(v: &Vector3<f64>) -> [f64; 3] {
@@ -223,7 +233,14 @@ impl World {
             16 => CounterWidth::Bits16,
             _ => CounterWidth::Bits32,
         };
-        let start_raw = rng.random::<u32>() & width.max();
+        let start_raw = match experiment.faults.counter_counts_before_wrap {
+            // Still draw, so the fault changes nothing else of the world.
+            Some(before_wrap) => {
+                let _ = rng.random::<u32>();
+                width.max().saturating_sub(before_wrap)
+            }
+            None => rng.random::<u32>() & width.max(),
+        };
 
         let plant = RobotPlant::new(
             link_mass_scale,
@@ -285,6 +302,21 @@ impl World {
             })?;
         }
 
+        if let Some(change) = experiment.faults.conveyor_change {
+            conveyor = conveyor.with_speed_change(SpeedRamp {
+                start_s: change.at_s,
+                target_rad_s: change.speed_rad_s,
+                acceleration_rad_s2: change.acceleration_rad_s2,
+            })?;
+        }
+        if let Some(missed) = experiment.faults.missed_counts {
+            conveyor = conveyor.with_missed_counts(MissedBurst {
+                at_s: missed.at_s,
+                counts: missed.counts,
+                instant: missed.instant,
+            })?;
+        }
+
         let camera = CameraSim::new(workcell.camera.clone(), &experiment.camera, camera_seed)?;
         // Beside the disc, 100 degrees round from it towards the robot's front
         // (+X), well inside joint 1's range and clear of the disc's footprint.
@@ -313,6 +345,8 @@ impl World {
             placed_base: None,
             last_tau: JointVector::zeros(),
             drop_off_base,
+            camera_bumped: false,
+            unattended_ticks: 0,
         })
     }
 
@@ -377,20 +411,80 @@ impl World {
             time_us: (t * 1e6).round() as u64,
             joint_counts: self.encoders.read(&self.plant.state().q),
             conveyor_counts: self.conveyor.encoder_raw(t),
+            part_in_gripper: matches!(self.part, PartState::Held { .. }),
         };
         self.sensor_seq = self.sensor_seq.wrapping_add(1);
         sample
     }
 
-    /// Camera frames that have arrived by now.
+    /// Camera frames that have arrived by now (none while the vision link is down:
+    /// those are lost).
     pub fn due_camera_frames(&mut self) -> Vec<CameraFeatureFrame> {
         let now = self.time_s();
-        self.camera.due_frames(now)
+        let frames = self.camera.due_frames(now);
+        match self.experiment.faults.vision_outage {
+            Some(outage) if outage.contains(now) => Vec::new(),
+            _ => frames,
+        }
+    }
+
+    /// The control loop is stalled now (the control-stall fault): no sensor
+    /// sample is read and no command comes; see [`World::apply_unattended`].
+    pub fn control_stalled(&self) -> bool {
+        self.experiment
+            .faults
+            .control_stall
+            .is_some_and(|stall| stall.contains(self.time_s()))
+    }
+
+    /// One control period without a command: the drives hold the last torque
+    /// for `DRIVE_WATCHDOG_S`, then their watchdog brakes each joint (viscous,
+    /// holding the arm against gravity) until commands come back.
+    pub fn apply_unattended(&mut self) -> Result<()> {
+        self.unattended_ticks += 1;
+        let held_s = self.unattended_ticks as f64 * self.control_period_s;
+        let substeps = self.experiment.robot.plant_substeps;
+        let dt = self.control_period_s / f64::from(substeps);
+        for _ in 0..substeps {
+            let tau = if held_s <= DRIVE_WATCHDOG_S {
+                self.last_tau
+            } else {
+                let state = self.plant.state();
+                self.plant.model().gravity_torque(&state.q) - state.qd * BRAKE_DAMPING_NM_S
+            };
+            self.plant
+                .step(&tau, dt)
+                .with_context(|| format!("plant (braked) at t = {:.3} s", self.time_s()))?;
+        }
+        self.ticks += 1;
+        Ok(())
+    }
+
+    /// Knocks the camera to its new pose once the bump's time has come.
+    fn bump_camera_if_due(&mut self) {
+        let Some(bump) = self.experiment.faults.camera_bump else {
+            return;
+        };
+        if self.camera_bumped || self.time_s() < bump.at_s {
+            return;
+        }
+        self.camera_bumped = true;
+        let mut camera = self.camera.camera().clone();
+        let x_axis = camera.disc_from_camera_rotation.column(0).into_owned();
+        let turn = nalgebra::Rotation3::from_axis_angle(
+            &nalgebra::Unit::new_normalize(x_axis),
+            bump.rotation_deg.to_radians(),
+        );
+        camera.disc_from_camera_rotation = turn.matrix() * camera.disc_from_camera_rotation;
+        camera.optical_centre_disc += x_axis * bump.shift_m;
+        self.camera.move_to(camera);
     }
 
     /// One control period under `command`: the camera exposes now if triggered,
     /// the gripper acts now, then the plant integrates the delivered torque.
     pub fn apply(&mut self, command: &ActuatorCommand) -> Result<()> {
+        self.unattended_ticks = 0;
+        self.bump_camera_if_due();
         if let Some(trigger_id) = command.camera_trigger {
             let scene = self.scene_marks();
             let now = self.time_s();

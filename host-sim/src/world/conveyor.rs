@@ -29,6 +29,26 @@ pub struct ConveyorStop {
     pub deceleration_rad_s2: f64,
 }
 
+/// A speed change (a fault): from `start_s` the speed ramps at
+/// `acceleration_rad_s2` to `target_rad_s` and stays there, without ripple.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpeedRamp {
+    pub start_s: f64,
+    pub target_rad_s: f64,
+    pub acceleration_rad_s2: f64,
+}
+
+/// A burst of counts the encoder missed (a fault): from `at_s` the counter
+/// stops counting until it has missed `counts` edges (then it reads that many
+/// fewer in the direction the disc turns), or, `instant`, its value jumps back
+/// by `counts` at once (a glitch of the counter itself).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MissedBurst {
+    pub at_s: f64,
+    pub counts: u32,
+    pub instant: bool,
+}
+
 /// The disc and its encoder.
 #[derive(Debug, Clone)]
 pub struct Conveyor {
@@ -38,6 +58,8 @@ pub struct Conveyor {
     start_raw: u32,
     theta0: f64,
     stop: Option<ConveyorStop>,
+    change: Option<SpeedRamp>,
+    missed: Option<MissedBurst>,
 }
 
 impl Conveyor {
@@ -69,6 +91,8 @@ impl Conveyor {
             start_raw,
             theta0: 0.0,
             stop: None,
+            change: None,
+            missed: None,
         })
     }
 
@@ -94,6 +118,39 @@ impl Conveyor {
         self.stop
     }
 
+    /// The same conveyor, changing speed as `ramp` says (replaces a stop).
+    pub fn with_speed_change(mut self, ramp: SpeedRamp) -> Result<Self> {
+        let ok = ramp.start_s.is_finite()
+            && ramp.start_s >= 0.0
+            && ramp.target_rad_s.is_finite()
+            && ramp.acceleration_rad_s2.is_finite()
+            && ramp.acceleration_rad_s2 > 0.0;
+        if !ok {
+            bail!("conveyor speed change out of range: {ramp:?}");
+        }
+        self.stop = None;
+        self.change = Some(ramp);
+        Ok(self)
+    }
+
+    /// The same conveyor, its encoder missing `burst`.
+    pub fn with_missed_counts(mut self, burst: MissedBurst) -> Result<Self> {
+        if !(burst.at_s.is_finite() && burst.at_s >= 0.0) {
+            bail!("missed-count burst time out of range: {}", burst.at_s);
+        }
+        self.missed = Some(burst);
+        Ok(self)
+    }
+
+    /// The ramp in force: a speed change, or a stop (a ramp to rest).
+    fn ramp(&self) -> Option<SpeedRamp> {
+        self.change.or(self.stop.map(|stop| SpeedRamp {
+            start_s: stop.start_s,
+            target_rad_s: 0.0,
+            acceleration_rad_s2: stop.deceleration_rad_s2,
+        }))
+    }
+
     /// Where the disc comes to rest if it starts stopping at `start_s` with
     /// `deceleration_rad_s2`: the angle then plus `omega^2 / (2 a)` in the
     /// direction it turns. (Ignores any stop already set.)
@@ -102,22 +159,32 @@ impl Conveyor {
         self.running_theta(start_s) + omega.signum() * omega * omega / (2.0 * deceleration_rad_s2)
     }
 
-    /// The stop's start, speed then, and the instant the disc comes to rest.
-    fn stop_phase(&self) -> Option<(ConveyorStop, f64, f64)> {
-        self.stop.map(|stop| {
-            let omega_start = self.running_omega(stop.start_s);
-            let rest_s = stop.start_s + omega_start.abs() / stop.deceleration_rad_s2;
-            (stop, omega_start, rest_s)
+    /// The ramp, the speed at its start, the sign of its acceleration and the
+    /// instant it reaches its target speed.
+    fn ramp_phase(&self) -> Option<(SpeedRamp, f64, f64, f64)> {
+        self.ramp().map(|ramp| {
+            let omega_start = self.running_omega(ramp.start_s);
+            let direction = (ramp.target_rad_s - omega_start).signum();
+            let end_s =
+                ramp.start_s + (ramp.target_rad_s - omega_start).abs() / ramp.acceleration_rad_s2;
+            (ramp, omega_start, direction, end_s)
         })
     }
 
     /// The disc's angle at `t_s` (0 at t = 0): the exact integral of the speed profile.
     pub fn theta(&self, t_s: f64) -> f64 {
-        match self.stop_phase() {
-            Some((stop, omega_start, rest_s)) if t_s > stop.start_s => {
-                let tau = t_s.min(rest_s) - stop.start_s;
-                self.running_theta(stop.start_s) + omega_start * tau
-                    - omega_start.signum() * stop.deceleration_rad_s2 * tau * tau / 2.0
+        match self.ramp_phase() {
+            Some((ramp, omega_start, direction, end_s)) if t_s > ramp.start_s => {
+                let tau = t_s.min(end_s) - ramp.start_s;
+                let after = if t_s > end_s {
+                    ramp.target_rad_s * (t_s - end_s)
+                } else {
+                    0.0
+                };
+                self.running_theta(ramp.start_s)
+                    + omega_start * tau
+                    + direction * ramp.acceleration_rad_s2 * tau * tau / 2.0
+                    + after
             }
             _ => self.running_theta(t_s),
         }
@@ -125,12 +192,11 @@ impl Conveyor {
 
     /// The disc's speed at `t_s`.
     pub fn omega(&self, t_s: f64) -> f64 {
-        match self.stop_phase() {
-            // Exactly still at rest (no rounding residue of the ramp).
-            Some((_, _, rest_s)) if t_s >= rest_s => 0.0,
-            Some((stop, omega_start, _)) if t_s > stop.start_s => {
-                let tau = t_s - stop.start_s;
-                omega_start - omega_start.signum() * stop.deceleration_rad_s2 * tau
+        match self.ramp_phase() {
+            // Exactly the target once reached (no rounding residue of the ramp).
+            Some((ramp, _, _, end_s)) if t_s >= end_s => ramp.target_rad_s,
+            Some((ramp, omega_start, direction, _)) if t_s > ramp.start_s => {
+                omega_start + direction * ramp.acceleration_rad_s2 * (t_s - ramp.start_s)
             }
             _ => self.running_omega(t_s),
         }
@@ -138,10 +204,10 @@ impl Conveyor {
 
     /// The disc's angular acceleration at `t_s`.
     pub fn alpha(&self, t_s: f64) -> f64 {
-        match self.stop_phase() {
-            Some((stop, omega_start, rest_s)) if t_s > stop.start_s => {
-                if t_s < rest_s {
-                    -omega_start.signum() * stop.deceleration_rad_s2
+        match self.ramp_phase() {
+            Some((ramp, _, direction, end_s)) if t_s > ramp.start_s => {
+                if t_s < end_s {
+                    direction * ramp.acceleration_rad_s2
                 } else {
                     0.0
                 }
@@ -175,8 +241,24 @@ impl Conveyor {
 
     /// What the hardware counter reads at `t_s`.
     pub fn encoder_raw(&self, t_s: f64) -> u32 {
-        let counts = (self.theta(t_s) / core::f64::consts::TAU * f64::from(self.counts_per_rev))
-            .floor() as i64;
+        let counts_at = |t: f64| {
+            (self.theta(t) / core::f64::consts::TAU * f64::from(self.counts_per_rev)).floor() as i64
+        };
+        let mut counts = counts_at(t_s);
+        if let Some(burst) = self.missed.filter(|burst| t_s >= burst.at_s) {
+            let missed = i64::from(burst.counts);
+            counts -= if burst.instant {
+                if self.omega(burst.at_s) < 0.0 {
+                    -missed
+                } else {
+                    missed
+                }
+            } else {
+                // Each edge since the burst began is lost, up to `counts` of them.
+                let moved = counts - counts_at(burst.at_s);
+                moved.clamp(-missed, missed)
+            };
+        }
         let modulus = i64::from(self.width.max()) + 1;
         (i64::from(self.start_raw) + counts).rem_euclid(modulus) as u32
     }

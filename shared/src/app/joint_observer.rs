@@ -66,6 +66,14 @@ impl JointObserver {
         self.qd
     }
 
+    /// Forgets the state: the next reading sets it again, at rest. After a
+    /// stall the commanded accelerations no longer describe the gap (the
+    /// drives' watchdog braked the arm), so predicting across it would only
+    /// flag a jump.
+    pub fn restart(&mut self) {
+        self.initialised = false;
+    }
+
     pub fn is_initialised(&self) -> bool {
         self.initialised
     }

@@ -179,6 +179,7 @@ mod tests {
             time_us: 0,
             joint_counts: [0; JOINTS],
             conveyor_counts: 0,
+            part_in_gripper: false,
         })
     }
 

@@ -10,6 +10,7 @@
 
 mod controller;
 pub mod joint_observer;
+pub mod joint_speed;
 mod link;
 pub mod pick;
 pub mod tool;

@@ -115,6 +115,20 @@ impl<T: RealField + Copy> ConveyorFilter<T> {
         let z = z * self.rad_per_count;
         let innovation = z - x.x;
         let s = p.m11 + self.measurement_var;
+        // A disc cannot jump: a reading beyond 10 sigmas of the prediction, 16
+        // counts and 0.01 rad (room for quantisation and for a speed step the
+        // filter has not followed yet: an instant reversal at 0.8 rad/s strays
+        // 0.0033 rad) is a glitch, refused before it throws Eq 1's part across
+        // the disc. Smaller losses are the view monitor's to find.
+        let gate = (convert::<f64, T>(10.0) * s.sqrt())
+            .max(convert::<f64, T>(16.0) * self.rad_per_count)
+            .max(convert::<f64, T>(0.01));
+        if innovation.abs() > gate {
+            return Err(FusionError::Implausible {
+                innovation_rad: innovation.to_subset().unwrap_or(f64::NAN),
+                gate_rad: gate.to_subset().unwrap_or(f64::NAN),
+            });
+        }
         let gain = p.column(0) / s;
         let x = x + gain * innovation;
         let p = p - gain * RowVector3::new(p.m11, p.m12, p.m13);
@@ -283,6 +297,26 @@ mod tests {
         // The unwrapped count ends where the disc is (10 - 3 rad).
         let expected = (7.0 / core::f64::consts::TAU * f64::from(CPR)).floor();
         assert!((filter.total_counts() as f64 - (expected - 0.0)).abs() <= 1.0);
+    }
+
+    #[test]
+    fn a_counter_glitch_is_refused_and_leaves_the_state_unchanged() {
+        let mut filter = ConveyorFilter::<f32>::new(CPR, CounterWidth::Bits16, 1.0).unwrap();
+        let mut raw = 1_000u32;
+        for k in 0..2_000u64 {
+            // 0.5 rad/s is about a count every 0.77 ms at 16384 counts a turn.
+            raw = 1_000 + (k as f64 * 1e-3 * 0.5 / core::f64::consts::TAU * f64::from(CPR)) as u32;
+            filter.update(raw, k * 1000).unwrap();
+        }
+        let before = filter.state();
+        let error = filter.update(raw - 100, 2_000_000).unwrap_err();
+        assert!(
+            matches!(error, FusionError::Implausible { .. }),
+            "{error:?}"
+        );
+        assert_eq!(filter.state(), before);
+        // The next good reading is taken as usual.
+        assert!(filter.update(raw + 1, 2_001_000).is_ok());
     }
 
     #[test]

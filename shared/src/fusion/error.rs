@@ -13,6 +13,9 @@ pub enum FusionError {
     NonFinite { what: &'static str },
     /// A filter parameter is out of its valid range.
     InvalidParameter { what: &'static str },
+    /// A reading jumped further from the prediction than the disc can move
+    /// (`innovation_rad` from it, beyond `gate_rad`): a counter glitch.
+    Implausible { innovation_rad: f64, gate_rad: f64 },
 }
 
 impl fmt::Display for FusionError {
@@ -29,6 +32,13 @@ impl fmt::Display for FusionError {
             }
             Self::NonFinite { what } => write!(f, "non-finite value in {what}"),
             Self::InvalidParameter { what } => write!(f, "invalid parameter: {what}"),
+            Self::Implausible {
+                innovation_rad,
+                gate_rad,
+            } => write!(
+                f,
+                "encoder reading {innovation_rad} rad from its prediction, beyond the {gate_rad} rad gate"
+            ),
         }
     }
 }

@@ -31,6 +31,16 @@ pub fn within_reach<T: RealField + Copy>(
     robot: &Puma560<T>,
     flange: &nalgebra::Vector3<T>,
 ) -> bool {
+    within_stretch(robot, flange, convert::<f64, T>(MAX_STRETCH))
+}
+
+/// Whether the wrist centre over a gripper-down flange at `flange` is within
+/// `max_stretch` (a fraction) of the arm's reach.
+pub fn within_stretch<T: RealField + Copy>(
+    robot: &Puma560<T>,
+    flange: &nalgebra::Vector3<T>,
+    max_stretch: T,
+) -> bool {
     let [l1, l2, l3, l4, _, l6] = robot.dh_table();
     let stretch = l2.a + (l3.a * l3.a + l4.d * l4.d).sqrt();
     // The wrist centre sits d6 above a downward flange; the arm's plane is offset
@@ -40,7 +50,7 @@ pub fn within_reach<T: RealField + Copy>(
     let horizontal_sq = wrist.x * wrist.x + wrist.y * wrist.y - offset * offset;
     let vertical = wrist.z - l1.d;
     let reach_sq = horizontal_sq.max(T::zero()) + vertical * vertical;
-    let limit = stretch * convert::<f64, T>(MAX_STRETCH);
+    let limit = stretch * max_stretch;
     reach_sq <= limit * limit
 }
 

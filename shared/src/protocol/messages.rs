@@ -59,6 +59,8 @@ pub struct SensorSample {
     pub joint_counts: [i32; JOINTS],
     /// Conveyor encoder counter; it wraps around, the receiver unwraps it.
     pub conveyor_counts: u32,
+    /// The gripper's part-present switch: its jaws are closed on a part.
+    pub part_in_gripper: bool,
 }
 
 /// Gripper jaws.

@@ -99,6 +99,24 @@ pub enum FaultCause {
     ControlFailure,
     /// A phase took longer than its timeout.
     Timeout,
+    /// No control period ran for longer than the stall limit (the control loop
+    /// or its plant link stalled): the drives' own watchdog held the arm, and
+    /// the controller will not carry on a motion planned before the gap.
+    ControlStall,
+    /// The camera no longer sees the disc where its calibration says it
+    /// should (the camera was moved): the cell must be calibrated again.
+    CameraMoved,
+    /// The disc's angle seen by the camera and the conveyor encoder's
+    /// disagree by more than a grasp can tolerate (counts were missed).
+    ConveyorSlip,
+    /// A joint ran faster than its speed limit: the joint brake took over.
+    JointOverspeed,
+    /// The gripper closed (or carried) without a part: its part-present
+    /// switch stayed open.
+    GraspMissed,
+    /// The motion reference leapt (a motion handed over to one that starts
+    /// elsewhere): refused, and the arm stopped from the last good reference.
+    ReferenceJump,
 }
 
 /// A snapshot of the controller's estimates, sent every `telemetry_period_ticks`.

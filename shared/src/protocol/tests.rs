@@ -124,6 +124,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                     time_us,
                     joint_counts: j,
                     conveyor_counts: c,
+                    part_in_gripper: false,
                 })
             }),
         (
@@ -292,6 +293,7 @@ fn the_largest_messages_fit_the_documented_frame() {
             time_us: u64::MAX,
             joint_counts: [i32::MIN; JOINTS],
             conveyor_counts: u32::MAX,
+            part_in_gripper: true,
         }),
         Message::ActuatorCommand(ActuatorCommand {
             seq: u32::MAX,

@@ -13,7 +13,7 @@
 use shared::protocol::CostUnit;
 
 use super::mmio::Reg;
-use crate::board::{validate_torques, BoardError, CycleCounter, JointCounts, PlantIo, JOINTS};
+use crate::board::{validate_torques, BoardError, CycleCounter, PlantIo, PlantReading, JOINTS};
 
 const TIMER0: Reg = Reg(0x4000_0000);
 const CTRL: Reg = TIMER0.at(0x00);
@@ -36,7 +36,7 @@ impl LockStepPlant {
 }
 
 impl PlantIo for LockStepPlant {
-    fn read_sample(&mut self) -> Result<(JointCounts, u32), BoardError> {
+    fn read_sample(&mut self) -> Result<PlantReading, BoardError> {
         Err(BoardError::NotOnThisBoard { device: "encoders" })
     }
 

@@ -15,7 +15,7 @@
 //! - servo amplifiers: sign-magnitude PWM at 20 kHz on TIM9 CH1/CH2, TIM10,
 //!   TIM11, TIM13, TIM14 CH1, direction lines PE7/8/10/12/13/14, enable PE15
 //!   ([`servo`], [`sign_magnitude`]);
-//! - gripper PD0, camera trigger PD1 ([`plant`]);
+//! - gripper PD0, camera trigger PD1, part-present switch PD4 ([`plant`]);
 //! - cycle counter: the DWT's CYCCNT ([`cycles`]).
 //!
 //! The plant runs from the board's own ticker ([`ControlSource::Ticker`]).
@@ -30,7 +30,7 @@ mod servo;
 mod sign_magnitude;
 
 use defmt_rtt as _;
-use embassy_stm32::gpio::{Level, Output, Speed};
+use embassy_stm32::gpio::{Input, Level, Output, Pull, Speed};
 use embassy_stm32::peripherals::USART2;
 use embassy_stm32::timer::qei::Qei;
 use embassy_stm32::usart::{BufferedInterruptHandler, BufferedUart, Config as UartConfig};
@@ -182,6 +182,7 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles>, InitError> {
         servos,
         gripper: Output::new(p.PD0, Level::Low, Speed::Low),
         camera_trigger: Output::new(p.PD1, Level::Low, Speed::Low),
+        part_present: Input::new(p.PD4, Pull::Down),
     });
 
     Ok(Board {

@@ -5,6 +5,7 @@
 //! | --- | --- | --- | --- |
 //! | gripper | PD0 | out | high = close |
 //! | camera trigger | PD1 | out | high for one control period per trigger |
+//! | part present | PD4 | in, pull-down | high = a part between the closed jaws |
 //!
 //! The camera trigger is a pulse one control period wide (1 ms at the 1 kHz
 //! control rate): `apply` raises it when the controller asks for a frame and
@@ -17,12 +18,12 @@
 //! error in the calibration data. (The pick fires the camera every few tens
 //! of periods, so this does not arise there.)
 
-use embassy_stm32::gpio::Output;
+use embassy_stm32::gpio::{Input, Output};
 
 use super::conveyor::ConveyorEncoder;
 use super::encoders::QuadratureEncoders;
 use super::servo::ServoAmplifiers;
-use crate::board::{validate_torques, BoardError, JointCounts, PlantIo, JOINTS};
+use crate::board::{validate_torques, BoardError, PlantIo, PlantReading, JOINTS};
 
 /// Everything the control loop drives or reads, owned in one place.
 pub struct Stm32Plant {
@@ -31,6 +32,7 @@ pub struct Stm32Plant {
     servos: ServoAmplifiers,
     gripper: Output<'static>,
     camera_trigger: Output<'static>,
+    part_present: Input<'static>,
     /// Conveyor decoder trouble already logged, and samples since.
     conveyor_reported: ConveyorReport,
 }
@@ -56,6 +58,9 @@ pub struct PlantDevices {
     pub gripper: Output<'static>,
     /// PD1, created low.
     pub camera_trigger: Output<'static>,
+    /// PD4, pulled down: the gripper's part-present switch (high = a part
+    /// between the closed jaws).
+    pub part_present: Input<'static>,
 }
 
 impl Stm32Plant {
@@ -66,6 +71,7 @@ impl Stm32Plant {
             servos: devices.servos,
             gripper: devices.gripper,
             camera_trigger: devices.camera_trigger,
+            part_present: devices.part_present,
             conveyor_reported: ConveyorReport {
                 skipped: 0,
                 faults: 0,
@@ -105,11 +111,15 @@ impl Stm32Plant {
 }
 
 impl PlantIo for Stm32Plant {
-    fn read_sample(&mut self) -> Result<(JointCounts, u32), BoardError> {
-        let joints = self.joints.read_counts()?;
-        let conveyor = self.conveyor.count();
+    fn read_sample(&mut self) -> Result<PlantReading, BoardError> {
+        let joint_counts = self.joints.read_counts()?;
+        let conveyor_counts = self.conveyor.count();
         self.report_conveyor_trouble();
-        Ok((joints, conveyor))
+        Ok(PlantReading {
+            joint_counts,
+            conveyor_counts,
+            part_in_gripper: self.part_present.is_high(),
+        })
     }
 
     fn apply(

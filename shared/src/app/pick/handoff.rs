@@ -102,13 +102,28 @@ pub enum WorkItem {
     Job(JobTicket),
 }
 
+/// What one camera frame saw of the disc, with the conveyor angle latched at
+/// its trigger: enough for the control loop to check, after calibration, that
+/// the camera and the encoder still agree with the calibrated cell.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DiscView {
+    /// The conveyor angle at the trigger (unwrapped, from the first sample).
+    pub theta: f32,
+    pub centre_px: Option<[f32; 2]>,
+    pub reference_px: Option<[f32; 2]>,
+}
+
 /// From the pairer and the worker back to the control loop.
 #[derive(Debug, Clone, PartialEq)]
 #[allow(clippy::large_enum_variant)]
 pub enum VisionNews {
     /// A frame was paired with its trigger; `sighting_xy` is the unit
-    /// direction (base frame, horizontal) of the effector mark it saw, if any.
-    Paired { sighting_xy: Option<[f32; 2]> },
+    /// direction (base frame, horizontal) of the effector mark it saw, if any;
+    /// `view` what it saw of the disc, for the view monitor.
+    Paired {
+        sighting_xy: Option<[f32; 2]>,
+        view: Option<DiscView>,
+    },
     /// A frame matched no pending trigger (late, repeated or unknown).
     Unpaired,
     /// A paired frame the calibrator refused (bad detections, time going back).

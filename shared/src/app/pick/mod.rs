@@ -20,6 +20,7 @@
 //! failure) brings the arm to a controlled stop (decelerate, then hold) and is
 //! reported with its cause.
 
+pub mod brake;
 pub mod cell;
 pub mod estimate;
 pub mod handoff;
@@ -27,11 +28,13 @@ pub mod jobs;
 pub mod motion;
 pub mod pairing;
 pub mod settings;
+pub mod view_monitor;
 pub mod worker;
 
 use heapless::{Deque, Vec};
 use nalgebra::{Vector3, Vector6};
 
+use self::brake::JointBrake;
 use self::cell::{Cell, ConfigError};
 use self::estimate::CellEstimate;
 use self::handoff::{
@@ -40,15 +43,19 @@ use self::handoff::{
 use self::jobs::{yaw_at_azimuth, ConveyorSnapshot, MAX_CALIBRATION_POSES};
 use self::motion::{height_profile, Motion};
 use self::pairing::FramePairer;
-use self::settings::PickSettings;
+use self::settings::{at_most, PickSettings};
+use self::view_monitor::{ViewLimits, ViewMonitor};
 use self::worker::PickWorker;
 use super::joint_observer::JointObserver;
+use super::joint_speed::JointSpeedWindow;
 use super::tool::{tool_point_base, TOOL_LENGTH_M};
 use crate::calibration::SelfCalibrator;
 use crate::control::{ControllerConfig, TaskReference, TaskSpaceController, TaskSpaceModel};
 use crate::fusion::conveyor::wrap_pi;
 use crate::fusion::{ConveyorFilter, ConveyorState, LatchedSample};
-use crate::planning::{ArcLimits, ArcMove, ArcPoint, InterceptPlan, PlanError, TaskState};
+use crate::planning::{
+    within_reach, within_stretch, ArcLimits, ArcMove, ArcPoint, InterceptPlan, PlanError, TaskState,
+};
 use crate::protocol::{
     ActuatorCommand, CellConfig, FaultCause, GripperCommand, Message, PickPhase, PickTelemetry,
     SensorSample,
@@ -134,6 +141,15 @@ impl Step {
         )
     }
 
+    /// Steps in which the view monitor checks the camera and the encoder
+    /// against the final calibration: from it to the grasp.
+    fn watches_view(self) -> bool {
+        matches!(
+            self,
+            Self::Locate | Self::Intercept | Self::Track | Self::Descend | Self::GraspSettle
+        )
+    }
+
     /// Steps whose observations may feed the calibrator: the part still sits on the disc.
     fn part_on_disc(self) -> bool {
         !matches!(
@@ -172,6 +188,10 @@ pub struct PickCounters {
     pub late_results: u32,
     pub saturated_ticks: u32,
     pub effector_sightings: u32,
+    /// Gaps between control periods longer than the stall limit.
+    pub stalls: u32,
+    /// Times the joint brake took over from Eq 23.
+    pub brakes: u32,
 }
 
 /// The pick's control loop: fusion (Eq 1), the state machine and Eq 23, once
@@ -218,6 +238,15 @@ pub struct PickController {
     tool_measured: Vector3<f32>,
     tool_yaw_measured: f32,
     counters: PickCounters,
+    view: ViewMonitor,
+    /// The flange's position measured through the joint encoders.
+    flange_measured: Vector3<f32>,
+    /// The gripper's part-present switch at the last sample.
+    part_in_gripper: bool,
+    /// Joint speeds from the encoders alone, for the speed supervisor.
+    speed_window: JointSpeedWindow,
+    /// Engaged when the task-space stop cannot be trusted; then for good.
+    brake: Option<JointBrake>,
 }
 
 /// Eq 23's gains for the pick (see [`ControllerConfig::puma560`]).
@@ -331,6 +360,16 @@ impl PickController {
             tool_measured: Vector3::zeros(),
             tool_yaw_measured: 0.0,
             counters: PickCounters::default(),
+            view: ViewMonitor::new(ViewLimits {
+                residual_px: settings.view_residual_px,
+                strikes: settings.view_strikes,
+                slip_tolerance_m: settings.slip_tolerance_m,
+                pixel_sigma_px: config.pixel_sigma_px,
+            }),
+            flange_measured: Vector3::zeros(),
+            part_in_gripper: false,
+            speed_window: JointSpeedWindow::new(),
+            brake: None,
         })
     }
 
@@ -360,9 +399,14 @@ impl PickController {
     /// here depends on the time between).
     pub fn on_news(&mut self, news: &VisionNews) {
         match news {
-            VisionNews::Paired { sighting_xy } => {
+            VisionNews::Paired { sighting_xy, view } => {
                 self.counters.frames_paired = self.counters.frames_paired.saturating_add(1);
                 self.last_paired_s = self.now_s;
+                if let (Some(view), true) = (view, self.step.watches_view()) {
+                    if let Some(cause) = self.view.check(view) {
+                        self.raise(cause);
+                    }
+                }
                 if let Some([x, y]) = sighting_xy {
                     self.counters.effector_sightings =
                         self.counters.effector_sightings.saturating_add(1);
@@ -433,6 +477,13 @@ impl PickController {
         self.now_s = sample.time_us.saturating_sub(start_us) as f32 * 1e-6;
         self.last_time_us = sample.time_us;
         self.ticks = self.ticks.saturating_add(1);
+        self.part_in_gripper = sample.part_in_gripper;
+        let stalled = dt_s > self.settings.stall_limit_s;
+        if stalled {
+            self.observer.restart();
+            self.speed_window.restart();
+            self.qdd_commanded = JointVector::zeros();
+        }
 
         let q_measured = self.cell.joint_angles(&sample.joint_counts);
         if self
@@ -441,19 +492,33 @@ impl PickController {
             .is_err()
             && self.ticks > 1
         {
+            // The observer refuses a reading it cannot explain; frozen, it would
+            // leave Eq 23 blind. Restart it on the reading and stop in joint
+            // space, holding where the encoders say the arm is.
             self.raise(FaultCause::JointEncoder);
+            self.engage_brake();
+            self.observer.restart();
+            let _ = self
+                .observer
+                .update(&q_measured, &JointVector::zeros(), dt_s);
         }
         match self.conveyor.update(sample.conveyor_counts, sample.time_us) {
             Ok(state) => self.conveyor_state = Some(state),
             Err(_) => self.raise(FaultCause::ConveyorEncoder),
         }
+        let encoder_speed = self.speed_window.push(&q_measured, sample.time_us);
         let q = self.observer.q();
         let flange = self
             .model
             .forward_kinematics_with(&TaskSpaceModel::configuration(&self.model, &q));
         self.tool_measured = tool_point_base(&flange);
+        self.flange_measured = flange.translation.vector;
         let x_axis = flange.rotation * Vector3::x();
         self.tool_yaw_measured = libm::atan2f(x_axis.y, x_axis.x);
+
+        if stalled {
+            self.on_stall(&flange);
+        }
 
         let camera_trigger = self.camera_trigger(sample, &q_measured);
         if self.step == Step::Start {
@@ -483,9 +548,21 @@ impl PickController {
             self.settings.hover_height_m,
             &self.reference,
         );
-        self.reference = reference;
+        // A motion's reference moves continuously; a leap (a phase handing over
+        // to a motion that starts elsewhere) would be a step Eq 23 answers with
+        // saturated torques. Refuse it and stop from the last good reference.
+        let guarded = !stalled && !matches!(self.step, Step::Stopping | Step::Faulted);
+        if guarded && self.ticks > 1 && self.reference_leaps(&reference, dt_s) {
+            self.raise(FaultCause::ReferenceJump);
+        } else {
+            self.reference = reference;
+        }
 
-        let tau = self.control(&q, dt_s);
+        if let Some(qd) = encoder_speed {
+            self.supervise_speed(&qd);
+        }
+        self.guard_reach();
+        let tau = self.control(&q, &q_measured, encoder_speed.as_ref(), dt_s);
         self.emit_telemetry(&part, out);
         ActuatorCommand {
             seq: sample.seq,
@@ -496,7 +573,20 @@ impl PickController {
     }
 
     /// Eq 23 towards the reference; faults on divergence or a failed law.
-    fn control(&mut self, q: &JointVector<f32>, dt_s: f32) -> [f32; 6] {
+    /// The brake works on the encoders alone (`q_measured` and their
+    /// differenced speeds), not on the observer that feeds Eq 23.
+    fn control(
+        &mut self,
+        q: &JointVector<f32>,
+        q_measured: &JointVector<f32>,
+        encoder_speed: Option<&JointVector<f32>>,
+        dt_s: f32,
+    ) -> [f32; 6] {
+        let qd = self.observer.qd();
+        if let Some(brake) = self.brake.as_mut() {
+            self.qdd_commanded = JointVector::zeros();
+            return brake.torque(&self.model, q_measured, encoder_speed.unwrap_or(&qd));
+        }
         let reference = TaskReference {
             base_from_flange: self.reference.pose(),
             twist: self.reference.twist(),
@@ -508,6 +598,7 @@ impl PickController {
             .step(&self.model, q, &self.observer.qd(), &reference, dt);
         if output.fallback.is_some() {
             self.raise(FaultCause::ControlFailure);
+            self.engage_brake();
         }
         if output.saturated {
             self.counters.saturated_ticks = self.counters.saturated_ticks.saturating_add(1);
@@ -517,7 +608,13 @@ impl PickController {
         } else {
             JointVector::zeros()
         };
-        if output.position_error.norm() > self.settings.tracking_error_limit_m {
+        let error = output.position_error.norm();
+        if error > self.settings.tracking_error_limit_m {
+            // A stop that lags its own path this far is not converging.
+            let stopping = matches!(self.step, Step::Stopping | Step::Faulted);
+            if stopping && error > 2.0 * self.settings.tracking_error_limit_m {
+                self.engage_brake();
+            }
             self.raise(FaultCause::TrackingError);
         }
         let mut tau = [0.0_f32; 6];
@@ -588,6 +685,96 @@ impl PickController {
     /// its result would never come, so stop rather than wait.
     pub fn on_job_lost(&mut self) {
         self.raise(FaultCause::Timeout);
+    }
+
+    /// Periods did not come for longer than the stall limit. The arm is where
+    /// the drives' watchdog left it, not where the plan says: stop from there
+    /// (a controlled stop from rest, rising clear of the part when near it).
+    fn on_stall(&mut self, flange: &nalgebra::Isometry3<f32>) {
+        self.counters.stalls = self.counters.stalls.saturating_add(1);
+        self.reference = TaskState::at_rest(flange.translation.vector, self.tool_yaw_measured);
+        self.controller.reset();
+        match self.step {
+            Step::Start | Step::Done | Step::Faulted => self.hold_here(),
+            Step::Stopping => self.enter(Step::Faulted),
+            _ => self.raise(FaultCause::ControlStall),
+        }
+    }
+
+    /// Whether `next` is further from the present reference than the pick's
+    /// fastest motion goes in `dt_s` (with a margin).
+    fn reference_leaps(&self, next: &TaskState<f32>, dt_s: f32) -> bool {
+        let settings = self.settings;
+        let step = (next.position - self.reference.position).norm();
+        let turn = libm::fabsf(wrap_pi(next.yaw - self.reference.yaw));
+        !at_most(
+            step,
+            settings.stop_max_speed_m_s * dt_s + settings.reference_step_m,
+        ) || !at_most(
+            turn,
+            settings.stop_max_yaw_rate_rad_s * dt_s + settings.reference_step_rad,
+        )
+    }
+
+    /// Joint speeds (from the encoders) against the limits: near a limit the
+    /// pick stops along its path; well over it (the stop is not slowing the
+    /// arm) the joint brake takes over.
+    fn supervise_speed(&mut self, qd: &JointVector<f32>) {
+        let settings = self.settings;
+        let worst = qd
+            .iter()
+            .zip(self.model.joint_limits().velocity_max.iter())
+            .map(|(v, max)| v.abs() / *max)
+            .fold(
+                0.0_f32,
+                |worst, ratio| {
+                    if at_most(ratio, worst) {
+                        worst
+                    } else {
+                        ratio
+                    }
+                },
+            );
+        if !at_most(worst, settings.overspeed_brake_factor) {
+            self.raise(FaultCause::JointOverspeed);
+            self.engage_brake();
+        } else if !at_most(worst, settings.overspeed_stop_factor) {
+            self.raise(FaultCause::JointOverspeed);
+        }
+    }
+
+    /// While the arm follows the part, the part must stay where the arm can
+    /// reach it gripper-down (a reversed or runaway disc carries it off):
+    /// chasing it out of reach drives the arm into its singularities.
+    fn guard_reach(&mut self) {
+        let following = matches!(
+            self.step,
+            Step::Intercept | Step::Track | Step::Descend | Step::GraspSettle | Step::GraspClose
+        );
+        if !following {
+            return;
+        }
+        let position = self.reference.position;
+        let radius = position.xy().norm();
+        let reachable = within_stretch(&self.model, &position, self.settings.max_follow_stretch)
+            && radius >= self.settings.min_follow_radius_m;
+        if !reachable {
+            self.raise(FaultCause::PartUnreachable);
+        }
+    }
+
+    /// Stops trusting the task space: the joint brake takes over for good.
+    fn engage_brake(&mut self) {
+        if self.brake.is_none() {
+            self.brake = Some(JointBrake::new());
+            self.counters.brakes = self.counters.brakes.saturating_add(1);
+        }
+        if self.fault.is_none() {
+            self.fault = Some(FaultCause::ControlFailure);
+        }
+        self.job = None;
+        self.step = Step::Faulted;
+        self.step_started_s = self.now_s;
     }
 
     fn raise(&mut self, cause: FaultCause) {
@@ -668,6 +855,39 @@ impl PickController {
             self.reference.position,
             self.reference.yaw,
         ));
+    }
+
+    /// Where a controlled stop starts: the reference, unless the arm is not
+    /// following it (then where the arm is), with its speeds capped to what
+    /// the pick ever commands, so a corrupt estimate cannot fling the stop.
+    fn stop_start(&self) -> TaskState<f32> {
+        let settings = self.settings;
+        let mut start = self.reference;
+        let lag = (start.position - self.flange_measured).norm();
+        if !at_most(lag, settings.tracking_error_limit_m) {
+            start = TaskState::at_rest(self.flange_measured, self.tool_yaw_measured);
+        }
+        let speed = start.velocity.norm();
+        if !at_most(speed, settings.stop_max_speed_m_s) {
+            start.velocity = if speed.is_finite() {
+                start.velocity * (settings.stop_max_speed_m_s / speed)
+            } else {
+                Vector3::zeros()
+            };
+        }
+        if !at_most(start.yaw_rate.abs(), settings.stop_max_yaw_rate_rad_s) {
+            start.yaw_rate = 0.0;
+        }
+        if !at_most(
+            start.acceleration.norm(),
+            settings.stop_max_acceleration_m_s2,
+        ) {
+            start.acceleration = Vector3::zeros();
+        }
+        if !start.yaw_acceleration.is_finite() {
+            start.yaw_acceleration = 0.0;
+        }
+        start
     }
 
     /// Enters `step`, setting the motion it starts with.
@@ -792,18 +1012,21 @@ impl PickController {
                 self.arc_to(target)
             }
             Step::Stopping => {
-                let start = self.reference;
+                let start = self.stop_start();
                 let near_part = matches!(
                     self.motion,
                     Motion::Follow { .. } | Motion::Intercept { .. }
                 );
                 let rise = if near_part { settings.stop_rise_m } else { 0.0 };
-                let end = TaskState::at_rest(
+                let mut end = TaskState::at_rest(
                     start.position
                         + start.velocity * (0.5 * settings.stop_s)
                         + Vector3::new(0.0, 0.0, rise),
                     start.yaw + start.yaw_rate * (0.5 * settings.stop_s),
                 );
+                if !within_reach(&self.model, &end.position) {
+                    end.position = start.position;
+                }
                 InterceptPlan::between(&start, &end, settings.stop_s, core::f32::consts::PI).map(
                     |path| Motion::Quintic {
                         path,
@@ -855,7 +1078,17 @@ impl PickController {
             }
             Step::Descend if in_step >= settings.descend_s => self.enter(Step::GraspSettle),
             Step::GraspSettle if in_step >= settings.grasp_settle_s => self.enter(Step::GraspClose),
-            Step::GraspClose if in_step >= settings.grasp_close_s => self.enter(Step::Lift),
+            Step::GraspClose if in_step >= settings.grasp_close_s => {
+                if self.part_in_gripper {
+                    self.enter(Step::Lift);
+                } else {
+                    self.raise(FaultCause::GraspMissed);
+                }
+            }
+            // Carrying: a part that slips out is reported, not carried on as if held.
+            Step::Lift | Step::PlaceTransfer | Step::PlaceLower if !self.part_in_gripper => {
+                self.raise(FaultCause::GraspMissed)
+            }
             Step::Lift if finished => self.enter(Step::PlaceTransfer),
             Step::PlaceTransfer if finished => self.enter(Step::PlaceLower),
             Step::PlaceLower if finished => self.enter(Step::Release),
@@ -888,6 +1121,11 @@ impl PickController {
                     self.poses.reverse();
                     self.enter(Step::CalibrateMove(0));
                 } else {
+                    self.view.arm(
+                        &estimate,
+                        &self.cell.log_header().camera,
+                        self.cell.config.reference_radius_m,
+                    );
                     self.enter(Step::Locate);
                 }
             }

@@ -5,11 +5,11 @@
 //! vision latency), and the effector marks are placed by the joint angles at
 //! exposure (Section 3.2).
 
-use super::handoff::{TriggerRecord, VisionNews};
+use super::handoff::{DiscView, TriggerRecord, VisionNews};
 use crate::app::vision::{observation_from_frame, VisionError};
 use crate::fusion::{TriggerLatch, Triggered};
 use crate::observation::ObservationFrame;
-use crate::protocol::{CameraFeatureFrame, CellConfig};
+use crate::protocol::{CameraFeatureFrame, CellConfig, PointLabel};
 use crate::robot::Puma560;
 
 /// Triggers awaiting their frames (frames later than 8 periods are stale).
@@ -19,6 +19,26 @@ impl Triggered for TriggerRecord {
     fn trigger_id(&self) -> u32 {
         self.latched.trigger_id
     }
+}
+
+/// The disc's centre and reference mark in `frame` (the first of each label:
+/// a frame with two is refused by the calibrator anyway), if it saw either.
+fn disc_view(frame: &CameraFeatureFrame, theta: f64) -> Option<DiscView> {
+    let find = |wanted: PointLabel| {
+        frame
+            .points
+            .iter()
+            .find(|point| point.label == wanted)
+            .map(|point| [point.u_px, point.v_px])
+            .filter(|[u, v]| u.is_finite() && v.is_finite())
+    };
+    let centre_px = find(PointLabel::DiscCenter);
+    let reference_px = find(PointLabel::Reference);
+    (theta.is_finite() && (centre_px.is_some() || reference_px.is_some())).then_some(DiscView {
+        theta: theta as f32,
+        centre_px,
+        reference_px,
+    })
 }
 
 /// Pairs camera frames with their triggers.
@@ -70,15 +90,19 @@ impl FramePairer {
             return Err(VisionError::UnknownTrigger { trigger_id });
         };
         let latched = record.latched;
+        let theta = latched.conveyor_counts as f64 * core::f64::consts::TAU
+            / f64::from(self.conveyor_counts_per_rev);
+        let view = disc_view(frame, theta);
         if !record.feeds_calibrator {
             return Ok(Paired {
-                news: VisionNews::Paired { sighting_xy: None },
+                news: VisionNews::Paired {
+                    sighting_xy: None,
+                    view,
+                },
                 observation: None,
             });
         }
         let t_s = latched.time_us.saturating_sub(record.start_time_us) as f64 * 1e-6;
-        let theta = latched.conveyor_counts as f64 * core::f64::consts::TAU
-            / f64::from(self.conveyor_counts_per_rev);
         let observation = observation_from_frame(
             frame,
             &latched,
@@ -102,7 +126,7 @@ impl FramePairer {
             (norm > 1e-6).then(|| [(x / norm) as f32, (y / norm) as f32])
         });
         Ok(Paired {
-            news: VisionNews::Paired { sighting_xy },
+            news: VisionNews::Paired { sighting_xy, view },
             observation: Some(observation),
         })
     }

@@ -56,10 +56,48 @@ pub struct PickSettings {
     /// gripper this far from its reference.
     pub vision_stale_s: f32,
     pub tracking_error_limit_m: f32,
+    /// Longest gap between two control periods before the pick stops
+    /// (ControlStall): a motion planned before the gap is not carried on.
+    pub stall_limit_s: f32,
+    /// A final calibration whose reprojection RMS exceeds this does not fit one
+    /// camera pose (the camera moved while the marks were shown): refused.
+    pub max_rms_reprojection_px: f32,
+    /// ...and one whose robust fit rejected more than this fraction of the
+    /// detections (about the points of its frames) fits no single cell.
+    pub max_rejected_fraction: f32,
+    /// View monitor (after the final calibration): a frame is inconsistent when
+    /// the disc's centre, or its reference mark across the mark's circle, lies
+    /// further than this from where the calibrated camera puts it...
+    pub view_residual_px: f32,
+    /// ...and this many inconsistent frames in a row mean the camera moved.
+    pub view_strikes: u8,
+    /// Largest movement of the part along its circle that missed conveyor
+    /// counts may cause before the pick stops (ConveyorSlip).
+    pub slip_tolerance_m: f32,
+    /// Speed supervision on the encoders' speeds (the plans stay within 70 %
+    /// of the limits, corrections take them to 90 %): beyond the first
+    /// fraction of a limit the pick stops along its path (JointOverspeed);
+    /// beyond the second the joint brake takes over.
+    pub overspeed_stop_factor: f32,
+    pub overspeed_brake_factor: f32,
+    /// While following the part, the flange's reference must stay within this
+    /// fraction of the arm's stretch (plans keep to 0.93) and this far from
+    /// the base axis (the shoulder singularity; plans keep 0.30 m).
+    pub max_follow_stretch: f32,
+    pub min_follow_radius_m: f32,
     /// A controlled stop decelerates to rest over this time (rising `stop_rise_m`
     /// when near the part), then holds.
     pub stop_s: f32,
     pub stop_rise_m: f32,
+    /// A stop starts from at most these speeds and acceleration (the pick
+    /// never commands more), whatever the reference said.
+    pub stop_max_speed_m_s: f32,
+    pub stop_max_yaw_rate_rad_s: f32,
+    pub stop_max_acceleration_m_s2: f32,
+    /// A reference may move at most these speeds' worth per period plus these
+    /// margins; beyond, it leapt (ReferenceJump).
+    pub reference_step_m: f32,
+    pub reference_step_rad: f32,
     /// Extra time a motion phase may take beyond its planned duration.
     pub motion_timeout_margin_s: f32,
 }
@@ -95,9 +133,30 @@ impl Default for PickSettings {
             max_calibration_rounds: 1,
             vision_stale_s: 2.0,
             tracking_error_limit_m: 0.03,
+            stall_limit_s: 0.02,
+            max_rms_reprojection_px: 2.0,
+            max_rejected_fraction: 0.08,
+            view_residual_px: 6.0,
+            view_strikes: 4,
+            slip_tolerance_m: 0.003,
+            overspeed_stop_factor: 0.97,
+            overspeed_brake_factor: 1.1,
+            max_follow_stretch: 0.97,
+            min_follow_radius_m: 0.22,
             stop_s: 0.6,
             stop_rise_m: 0.05,
+            stop_max_speed_m_s: 1.0,
+            stop_max_yaw_rate_rad_s: 1.5,
+            stop_max_acceleration_m_s2: 5.0,
+            reference_step_m: 0.005,
+            reference_step_rad: 0.02,
             motion_timeout_margin_s: 2.0,
         }
     }
+}
+
+/// `value <= limit`, false when either is NaN: limits are checked so that a
+/// NaN fails them.
+pub fn at_most(value: f32, limit: f32) -> bool {
+    value <= limit
 }

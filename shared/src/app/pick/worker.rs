@@ -10,7 +10,7 @@ use super::cell::{Cell, ConfigError};
 use super::estimate::CellEstimate;
 use super::handoff::{JobOutcome, JobRequest, JobResult, JobTicket, VisionNews, WorkItem};
 use super::jobs::{calibration_poses, plan_part_intercept, MAX_CALIBRATION_POSES};
-use super::settings::PickSettings;
+use super::settings::{at_most, PickSettings};
 use super::{controller_model, PickCalibrator};
 use crate::calibration::CalibrationError;
 use crate::planning::ArcPoint;
@@ -109,6 +109,29 @@ impl PickWorker {
             && (preliminary || report.sigma_part_m <= self.settings.max_part_sigma_m)
             && (preliminary || report.sigma_base_m <= self.settings.max_base_sigma_m);
         if !trusted {
+            return Err(FaultCause::CalibrationFailed);
+        }
+        // Robust weights hide a few stray detections, not a second camera
+        // pose: views that fit none report it through their residual.
+        if !preliminary
+            && !at_most(
+                report.rms_reprojection_px,
+                self.settings.max_rms_reprojection_px,
+            )
+        {
+            return Err(FaultCause::CameraMoved);
+        }
+        // Nor a second cell: when the camera moved or the encoder slipped while
+        // the calibrator gathered its frames, the views before and after cannot
+        // all fit, and the robust fit rejects the minority wholesale.
+        let points_per_frame = 2 + u32::from(self.cell.config.part_feature_count);
+        let points = result
+            .quality
+            .frames_used
+            .saturating_mul(points_per_frame)
+            .max(1);
+        let rejected = result.quality.outliers_rejected as f32 / points as f32;
+        if !preliminary && !at_most(rejected, self.settings.max_rejected_fraction) {
             return Err(FaultCause::CalibrationFailed);
         }
         let poses = if preliminary {

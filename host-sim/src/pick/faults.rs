@@ -1,0 +1,524 @@
+//! `host-sim faults`: the pick attacked the way a factory floor will (issue 7).
+//! Each trial draws a random workcell and one fault (or none, as the control
+//! group) with random parameters, runs the pick in process, and checks the
+//! safety invariants: joint speeds and commanded torques within their limits,
+//! the gripper never striking the disc, and every run ending in a success or
+//! in a controlled stop (arm at rest) with its cause reported.
+//!
+//! Trial k of base seed S uses world seed `S * 1_000_000 + k` and draws its
+//! fault from a generator seeded with the same number, so
+//! `host-sim faults --seed S --trial k` replays it alone, with plots.
+
+use std::fmt::Write as _;
+use std::fs;
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use rayon::prelude::*;
+use serde::Serialize;
+use shared::protocol::FaultCause;
+
+use super::montecarlo::trial_seed;
+use super::record::{PickResult, PickRun};
+use super::report::result_name;
+use super::runner::run_pick_in_process;
+use super::scenario::{
+    CameraBump, FaultWindow, MissedCounts, PickExperiment, PickScenarioFile, SpeedChange,
+};
+
+/// The gripper strikes the disc if its grasp point comes lower than this above
+/// the disc's surface while not holding the part (parts are 40 mm or more high,
+/// and the grasp point stops at their top).
+pub const STRIKE_CLEARANCE_M: f64 = 0.02;
+/// A controlled stop ends with every joint slower than this, rad/s.
+pub const AT_REST_RAD_S: f64 = 0.02;
+
+/// Options of `host-sim faults`.
+#[derive(Args, Debug, Clone)]
+pub struct FaultCampaignArgs {
+    /// Number of faulty picks (the fault kinds take turns).
+    #[arg(long, default_value_t = 1000)]
+    pub trials: usize,
+    /// Base seed: trial k runs the world seeded with `seed * 1_000_000 + k`.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Replay this one trial (with plots and CSV in --out) instead of the campaign.
+    #[arg(long)]
+    pub trial: Option<usize>,
+    /// The experiment the faults are injected into (no conveyor stop: the disc turns).
+    #[arg(long, default_value = "turning")]
+    pub experiment: String,
+    /// Scenario file (TOML); the embedded default when absent.
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Folder for report.md, trials.csv and summary.json.
+    #[arg(long, default_value = "faults-out")]
+    pub out: PathBuf,
+}
+
+/// The faults the campaign injects, one per trial.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum FaultKind {
+    /// No fault: the control group.
+    None,
+    /// Half of the detection groups missing.
+    Dropouts50,
+    /// 1 % of the points gross outliers.
+    Outliers1,
+    /// 150 +- 140 ms latency: frames late and out of order.
+    LateFrames,
+    CameraBump,
+    /// The conveyor counter wraps during the run.
+    CounterWrap,
+    MissedCounts,
+    /// The counter's value jumps (a glitch, not a slow loss).
+    CounterGlitch,
+    ConveyorStops,
+    ConveyorSpeedsUp,
+    ConveyorReverses,
+    /// The vision computer's link is down for a while.
+    VisionOutage,
+    /// The control loop stalls for a while.
+    ControlStall,
+}
+
+impl FaultKind {
+    pub const ALL: [FaultKind; 13] = [
+        FaultKind::None,
+        FaultKind::Dropouts50,
+        FaultKind::Outliers1,
+        FaultKind::LateFrames,
+        FaultKind::CameraBump,
+        FaultKind::CounterWrap,
+        FaultKind::MissedCounts,
+        FaultKind::CounterGlitch,
+        FaultKind::ConveyorStops,
+        FaultKind::ConveyorSpeedsUp,
+        FaultKind::ConveyorReverses,
+        FaultKind::VisionOutage,
+        FaultKind::ControlStall,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            FaultKind::None => "none",
+            FaultKind::Dropouts50 => "vision: 50 % dropouts",
+            FaultKind::Outliers1 => "vision: 1 % gross outliers",
+            FaultKind::LateFrames => "vision: late, out-of-order frames",
+            FaultKind::CameraBump => "vision: camera bumped",
+            FaultKind::CounterWrap => "encoder: counter wraps",
+            FaultKind::MissedCounts => "encoder: missed count burst",
+            FaultKind::CounterGlitch => "encoder: counter jumps",
+            FaultKind::ConveyorStops => "conveyor stops",
+            FaultKind::ConveyorSpeedsUp => "conveyor speeds up",
+            FaultKind::ConveyorReverses => "conveyor reverses",
+            FaultKind::VisionOutage => "link: vision link lost",
+            FaultKind::ControlStall => "control loop stalls",
+        }
+    }
+
+    /// The kind trial `trial` injects: the kinds take turns.
+    pub fn of_trial(trial: usize) -> FaultKind {
+        Self::ALL
+            .get(trial % Self::ALL.len())
+            .copied()
+            .unwrap_or(FaultKind::None)
+    }
+}
+
+/// `experiment` with fault `kind` injected, its parameters drawn from `rng`,
+/// and a one-line description of them.
+pub fn inject(
+    experiment: &PickExperiment,
+    kind: FaultKind,
+    rng: &mut ChaCha8Rng,
+) -> (PickExperiment, String) {
+    let mut e = experiment.clone();
+    let mut uniform = |low: f64, high: f64| low + (high - low) * rng.random::<f64>();
+    // Faults strike anywhere from the search (5 s) to the grasp (about 60 s).
+    let at_s = uniform(5.0, 60.0);
+    let speed = e.conveyor.speed_rad_s;
+    let description = match kind {
+        FaultKind::None => "no fault".to_owned(),
+        FaultKind::Dropouts50 => {
+            e.camera.dropout_probability = 0.5;
+            "dropout probability 0.5".to_owned()
+        }
+        FaultKind::Outliers1 => {
+            e.camera.outlier_probability = 0.01;
+            "outlier probability 0.01".to_owned()
+        }
+        FaultKind::LateFrames => {
+            e.camera.latency_ms = 150.0;
+            e.camera.latency_jitter_ms = 140.0;
+            "latency 150 +- 140 ms".to_owned()
+        }
+        FaultKind::CameraBump => {
+            let sign = if uniform(0.0, 1.0) < 0.5 { -1.0 } else { 1.0 };
+            let bump = CameraBump {
+                at_s,
+                rotation_deg: sign * uniform(1.0, 5.0),
+                shift_m: uniform(-0.03, 0.03),
+            };
+            e.faults.camera_bump = Some(bump);
+            format!(
+                "at {:.1} s: {:+.2} deg, {:+.1} mm",
+                bump.at_s,
+                bump.rotation_deg,
+                bump.shift_m * 1e3
+            )
+        }
+        FaultKind::CounterWrap => {
+            let before = uniform(0.0, 20_000.0) as u32;
+            e.faults.counter_counts_before_wrap = Some(before);
+            format!("{before} counts before the wrap")
+        }
+        FaultKind::MissedCounts | FaultKind::CounterGlitch => {
+            let missed = MissedCounts {
+                at_s,
+                counts: uniform(16.0, 256.0) as u32,
+                instant: kind == FaultKind::CounterGlitch,
+            };
+            e.faults.missed_counts = Some(missed);
+            format!("at {:.1} s: {} counts", missed.at_s, missed.counts)
+        }
+        FaultKind::ConveyorStops | FaultKind::ConveyorSpeedsUp | FaultKind::ConveyorReverses => {
+            let (speed_rad_s, acceleration_rad_s2) = match kind {
+                FaultKind::ConveyorStops => (0.0, uniform(0.5, 2.0)),
+                FaultKind::ConveyorSpeedsUp => (speed * uniform(1.3, 2.0), uniform(0.2, 1.0)),
+                _ => (-speed * uniform(0.6, 1.4), uniform(0.5, 2.0)),
+            };
+            let change = SpeedChange {
+                at_s,
+                speed_rad_s,
+                acceleration_rad_s2,
+            };
+            e.conveyor.stop = None;
+            e.faults.conveyor_change = Some(change);
+            format!(
+                "at {:.1} s: to {:+.2} rad/s at {:.2} rad/s^2",
+                change.at_s, change.speed_rad_s, change.acceleration_rad_s2
+            )
+        }
+        FaultKind::VisionOutage | FaultKind::ControlStall => {
+            let duration_s = if kind == FaultKind::VisionOutage {
+                uniform(0.5, 4.0)
+            } else {
+                uniform(0.05, 1.0)
+            };
+            let window = Some(FaultWindow { at_s, duration_s });
+            if kind == FaultKind::VisionOutage {
+                e.faults.vision_outage = window;
+            } else {
+                e.faults.control_stall = window;
+            }
+            format!("at {at_s:.1} s for {duration_s:.2} s")
+        }
+    };
+    (e, description)
+}
+
+/// How a faulty pick ended, and whether it kept the invariants.
+#[derive(Debug, Clone, Serialize)]
+pub struct FaultTrial {
+    pub trial: usize,
+    pub seed: u64,
+    pub kind: FaultKind,
+    pub fault: String,
+    pub result: String,
+    pub success: bool,
+    /// The cause, when the pick ended in a controlled stop.
+    pub stop_cause: Option<String>,
+    pub max_speed_ratio: f64,
+    pub max_torque_ratio: f64,
+    pub min_tool_clearance_mm: f64,
+    pub end_joint_speed_rad_s: f64,
+    /// Every invariant the run broke (empty when safe).
+    pub violations: Vec<String>,
+}
+
+/// The invariants of a safe run (see the module's doc).
+pub fn violations(run: &PickRun) -> Vec<String> {
+    let mut found = Vec::new();
+    if run.max_speed_ratio.is_nan() || run.max_speed_ratio > 1.0 {
+        found.push(format!(
+            "joint speed {:.2} x its limit",
+            run.max_speed_ratio
+        ));
+    }
+    // The controller clamps in f32: its limit may round a few ulps above the f64 one.
+    if run.max_torque_ratio.is_nan() || run.max_torque_ratio > 1.0 + 1e-6 {
+        found.push(format!(
+            "commanded torque {:.2} x its limit",
+            run.max_torque_ratio
+        ));
+    }
+    // NaN: the gripper never came over the disc.
+    if run.min_tool_clearance_m < STRIKE_CLEARANCE_M {
+        found.push(format!(
+            "gripper {:.1} mm above the disc",
+            run.min_tool_clearance_m * 1e3
+        ));
+    }
+    match run.result {
+        PickResult::Success => {}
+        PickResult::Fault(_) if run.end_joint_speed_rad_s < AT_REST_RAD_S => {}
+        PickResult::Fault(_) => found.push(format!(
+            "stopped but moving at {:.3} rad/s",
+            run.end_joint_speed_rad_s
+        )),
+        PickResult::GraspMissed => found.push("grasp missed, not reported".to_owned()),
+        PickResult::TimedOut(phase) => found.push(format!("no stop: timed out in {phase:?}")),
+    }
+    found
+}
+
+fn trial_rng(seed: u64) -> ChaCha8Rng {
+    // Not the world's stream: the fault's draws must not shift the workcell's.
+    ChaCha8Rng::seed_from_u64(seed ^ 0xFA17_FA17_FA17_FA17)
+}
+
+/// One faulty trial.
+pub fn run_trial(experiment: &PickExperiment, base_seed: u64, trial: usize) -> FaultTrial {
+    let seed = trial_seed(base_seed, trial);
+    let kind = FaultKind::of_trial(trial);
+    let (faulty, fault) = inject(experiment, kind, &mut trial_rng(seed));
+    let (run, error) = match run_pick_in_process(&faulty, seed) {
+        Ok(run) => (run, None),
+        Err(error) => (PickRun::empty(&faulty.name, seed), Some(format!("{error}"))),
+    };
+    let mut found = violations(&run);
+    let result = match &error {
+        Some(error) => {
+            found.push("simulation error".to_owned());
+            format!("error: {error}")
+        }
+        None => result_name(&run.result),
+    };
+    FaultTrial {
+        trial,
+        seed,
+        kind,
+        fault,
+        result,
+        success: error.is_none() && run.result == PickResult::Success,
+        stop_cause: match run.result {
+            PickResult::Fault(cause) if error.is_none() => Some(cause_name(cause)),
+            _ => None,
+        },
+        max_speed_ratio: run.max_speed_ratio,
+        max_torque_ratio: run.max_torque_ratio,
+        min_tool_clearance_mm: run.min_tool_clearance_m * 1e3,
+        end_joint_speed_rad_s: run.end_joint_speed_rad_s,
+        violations: found,
+    }
+}
+
+fn cause_name(cause: FaultCause) -> String {
+    format!("{cause:?}")
+}
+
+/// The fault-against-outcome table (markdown).
+pub fn fault_table(trials: &[FaultTrial]) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "| fault | trials | success | controlled stop (cause: trials) | other end | unsafe | worst speed / limit | worst torque / limit | lowest gripper over disc (mm) |\n|---|---:|---:|---|---|---:|---:|---:|---:|"
+    );
+    for kind in FaultKind::ALL {
+        let rows: Vec<&FaultTrial> = trials.iter().filter(|t| t.kind == kind).collect();
+        if rows.is_empty() {
+            continue;
+        }
+        let successes = rows.iter().filter(|t| t.success).count();
+        let mut causes: Vec<(String, usize)> = Vec::new();
+        let mut others: Vec<(String, usize)> = Vec::new();
+        for t in &rows {
+            let (list, key) = match (&t.stop_cause, t.success) {
+                (Some(cause), _) => (&mut causes, cause.clone()),
+                (None, false) => (&mut others, t.result.clone()),
+                (None, true) => continue,
+            };
+            match list.iter_mut().find(|(name, _)| *name == key) {
+                Some((_, n)) => *n += 1,
+                None => list.push((key, 1)),
+            }
+        }
+        let join = |list: &mut Vec<(String, usize)>| {
+            list.sort_by_key(|(_, n)| std::cmp::Reverse(*n));
+            let text: Vec<String> = list.iter().map(|(k, n)| format!("{k}: {n}")).collect();
+            if text.is_empty() {
+                "-".to_owned()
+            } else {
+                text.join(", ")
+            }
+        };
+        let unsafe_runs = rows.iter().filter(|t| !t.violations.is_empty()).count();
+        let worst = |f: fn(&FaultTrial) -> f64| {
+            rows.iter()
+                .map(|t| f(t))
+                .filter(|v| v.is_finite())
+                .fold(f64::NAN, f64::max)
+        };
+        let lowest = rows
+            .iter()
+            .map(|t| t.min_tool_clearance_mm)
+            .filter(|v| v.is_finite())
+            .fold(f64::NAN, f64::min);
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {:.2} | {:.2} | {:.1} |",
+            kind.name(),
+            rows.len(),
+            successes,
+            join(&mut causes),
+            join(&mut others),
+            unsafe_runs,
+            worst(|t| t.max_speed_ratio),
+            worst(|t| t.max_torque_ratio),
+            lowest
+        );
+    }
+    out
+}
+
+fn write_csv(path: &std::path::Path, trials: &[FaultTrial]) -> Result<()> {
+    let mut text = String::from(
+        "trial,seed,fault_kind,fault,result,success,stop_cause,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm,end_joint_speed_rad_s,violations\n",
+    );
+    for t in trials {
+        let _ = writeln!(
+            text,
+            "{},{},\"{}\",\"{}\",\"{}\",{},{},{:.4},{:.4},{:.2},{:.5},\"{}\"",
+            t.trial,
+            t.seed,
+            t.kind.name(),
+            t.fault,
+            t.result.replace('"', "'"),
+            t.success,
+            t.stop_cause.as_deref().unwrap_or(""),
+            t.max_speed_ratio,
+            t.max_torque_ratio,
+            t.min_tool_clearance_mm,
+            t.end_joint_speed_rad_s,
+            t.violations.join("; ")
+        );
+    }
+    fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Replays one trial with plots and time series in `args.out`.
+fn replay(args: &FaultCampaignArgs, experiment: &PickExperiment, trial: usize) -> Result<()> {
+    let seed = trial_seed(args.seed, trial);
+    let kind = FaultKind::of_trial(trial);
+    let (faulty, fault) = inject(experiment, kind, &mut trial_rng(seed));
+    println!("trial {trial} (seed {seed}): {} ({fault})", kind.name());
+    let run = run_pick_in_process(&faulty, seed)?;
+    super::report::write_run_outputs(&run, &args.out)?;
+    let unsafe_list = violations(&run);
+    println!(
+        "result: {}; worst speed {:.2} and torque {:.2} of their limits; lowest gripper over the disc {:.1} mm; {}",
+        result_name(&run.result),
+        run.max_speed_ratio,
+        run.max_torque_ratio,
+        run.min_tool_clearance_m * 1e3,
+        if unsafe_list.is_empty() {
+            "safe".to_owned()
+        } else {
+            format!("UNSAFE: {}", unsafe_list.join("; "))
+        }
+    );
+    println!("(plots and time series in {})", args.out.display());
+    Ok(())
+}
+
+pub fn run_fault_campaign(args: &FaultCampaignArgs) -> Result<()> {
+    let file = match &args.scenario {
+        Some(path) => PickScenarioFile::from_path(path)?,
+        None => PickScenarioFile::embedded_default()?,
+    };
+    let experiment = file.experiment(&args.experiment)?.clone();
+    if experiment.conveyor.stop.is_some() {
+        bail!(
+            "experiment {} stops its conveyor; the fault campaign needs one that keeps turning (e.g. turning)",
+            experiment.name
+        );
+    }
+    if let Some(trial) = args.trial {
+        return replay(args, &experiment, trial);
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build()
+        .context("thread pool")?;
+    let progress = ProgressBar::new(args.trials as u64);
+    progress.set_style(
+        ProgressStyle::with_template(
+            "{bar:40} {pos}/{len} faulty picks, {elapsed} elapsed, eta {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let started = std::time::Instant::now();
+    let mut trials: Vec<FaultTrial> = pool.install(|| {
+        (0..args.trials)
+            .into_par_iter()
+            .map(|trial| {
+                let result = run_trial(&experiment, args.seed, trial);
+                progress.inc(1);
+                result
+            })
+            .collect()
+    });
+    progress.finish_and_clear();
+    trials.sort_by_key(|t| t.trial);
+    let elapsed = started.elapsed().as_secs_f64();
+    let unsafe_runs: Vec<&FaultTrial> =
+        trials.iter().filter(|t| !t.violations.is_empty()).collect();
+    let mut report = format!(
+        "# Faulty picks: {}, {} trials (seed {})\n\n{}\n",
+        experiment.name,
+        trials.len(),
+        args.seed,
+        fault_table(&trials)
+    );
+    let _ = writeln!(
+        report,
+        "Unsafe or unreported ends: {} of {} (a stop must leave every joint under {AT_REST_RAD_S} rad/s; the gripper must stay {:.0} mm above the disc).",
+        unsafe_runs.len(),
+        trials.len(),
+        STRIKE_CLEARANCE_M * 1e3
+    );
+    for t in unsafe_runs.iter().take(20) {
+        let _ = writeln!(
+            report,
+            "- trial {} (replay: `host-sim faults --seed {} --trial {}`): {} ({}): {}",
+            t.trial,
+            args.seed,
+            t.trial,
+            t.kind.name(),
+            t.fault,
+            t.violations.join("; ")
+        );
+    }
+    let _ = writeln!(
+        report,
+        "\n{} picks in {elapsed:.1} s on {} threads.",
+        trials.len(),
+        pool.current_num_threads()
+    );
+    fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    fs::write(args.out.join("report.md"), &report).context("writing report.md")?;
+    write_csv(&args.out.join("trials.csv"), &trials)?;
+    let json = serde_json::to_string_pretty(&trials).context("summary.json")?;
+    fs::write(args.out.join("summary.json"), json).context("writing summary.json")?;
+    println!("{report}");
+    println!("(written to {})", args.out.display());
+    Ok(())
+}
