@@ -39,8 +39,14 @@ fn open_session<L: ByteLink>(link: &mut FramedLink<L>, world: &World) -> Result<
     loop {
         match link.recv(REPLY_TIMEOUT, "HelloAck")? {
             Message::HelloAck { .. } => break,
-            // Reports of frames refused before this session (stale bytes on a board's UART).
-            Message::ErrorReport { .. } => continue,
+            // Reports of frames refused before this session (stale bytes on a
+            // board's UART), and what an earlier session's last control period
+            // queued behind its command (a restart after a stop).
+            Message::ErrorReport { .. }
+            | Message::Telemetry(_)
+            | Message::CalibrationReport(_)
+            | Message::ActuatorCommand(_)
+            | Message::Ack { .. } => continue,
             other => bail!("expected HelloAck, got {other:?}"),
         }
     }

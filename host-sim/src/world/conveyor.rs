@@ -383,6 +383,67 @@ mod tests {
     }
 
     #[test]
+    fn a_reversal_ramps_the_speed_through_zero_with_a_continuous_angle() {
+        let profile = ConveyorProfile {
+            speed_rad_s: 0.5,
+            ripple_fraction: 0.0,
+            ripple_hz: 0.0,
+        };
+        let conveyor = Conveyor::new(profile, 4096, CounterWidth::Bits16, 0)
+            .unwrap()
+            .with_speed_change(SpeedRamp {
+                start_s: 10.0,
+                target_rad_s: -0.4,
+                acceleration_rad_s2: 1.0,
+            })
+            .unwrap();
+        let h = 1e-5;
+        for k in 0..3000 {
+            let t = 9.0 + k as f64 * 1e-3;
+            // Speed is the angle's derivative everywhere but at the ramp's two
+            // corners (0.5 to -0.4 rad/s at 1 rad/s^2: from 10 s to 10.9 s).
+            let near_corner = (t - 10.0).abs() < 2e-3 || (t - 10.9).abs() < 2e-3;
+            if !near_corner {
+                let omega = (conveyor.theta(t + h) - conveyor.theta(t - h)) / (2.0 * h);
+                assert!((omega - conveyor.omega(t)).abs() < 1e-6, "at {t}");
+            }
+            assert!((conveyor.theta(t + 1e-4) - conveyor.theta(t)).abs() < 1e-4);
+        }
+        assert_eq!(conveyor.omega(20.0), -0.4);
+        assert_eq!(conveyor.alpha(10.5), -1.0);
+        assert_eq!(conveyor.alpha(20.0), 0.0);
+    }
+
+    #[test]
+    fn missed_counts_freeze_the_counter_and_a_glitch_jumps_it() {
+        let profile = ConveyorProfile {
+            speed_rad_s: 0.5,
+            ripple_fraction: 0.0,
+            ripple_hz: 0.0,
+        };
+        let plain = Conveyor::new(profile, 4096, CounterWidth::Bits32, 1000).unwrap();
+        let burst = |instant| {
+            plain
+                .clone()
+                .with_missed_counts(MissedBurst {
+                    at_s: 5.0,
+                    counts: 40,
+                    instant,
+                })
+                .unwrap()
+        };
+        let (slow, jump) = (burst(false), burst(true));
+        let read = |c: &Conveyor, t: f64| i64::from(c.encoder_raw(t));
+        assert_eq!(read(&slow, 4.9), read(&plain, 4.9));
+        // 40 counts at 326 counts/s: frozen for 0.12 s, then 40 behind for good.
+        assert_eq!(read(&slow, 5.1), read(&slow, 5.0));
+        assert_eq!(read(&plain, 6.0) - read(&slow, 6.0), 40);
+        assert_eq!(read(&plain, 30.0) - read(&slow, 30.0), 40);
+        assert_eq!(read(&plain, 5.0) - read(&jump, 5.0), 40);
+        assert_eq!(read(&plain, 4.999) - read(&jump, 4.999), 0);
+    }
+
+    #[test]
     fn refuses_bad_settings() {
         let ok = ConveyorProfile {
             speed_rad_s: 0.5,
