@@ -389,3 +389,31 @@ fn wrist_elbow_and_shoulder_singularities_stay_bounded() {
         println!("{name} singularity (det J = {det:.1e}): max |qdd| {worst_qdd:.1} rad/s^2");
     }
 }
+
+#[test]
+fn a_step_with_precomputed_kinematics_is_the_same_step() {
+    // The pick computes the configuration and the flange kinematics once per
+    // period and hands them to Eq 23: the result must not change by a bit.
+    let model = controller_model(1.0);
+    let circle = task_circle();
+    let (q0, qd0) = start_on(&Puma560::<f64>::new(), &circle.reference(0.0));
+    let (q, qd) = (q0.cast::<f32>(), qd0.cast::<f32>());
+    let mut plain = TaskSpaceController::new(controller_config(true)).unwrap();
+    let mut shared_work = plain.clone();
+    for k in 0..50 {
+        let reference = cast_reference(&circle.reference(k as f64 * 1e-3));
+        let configuration = TaskSpaceModel::configuration(&model, &q);
+        let kinematics = TaskSpaceModel::task_kinematics(&model, &configuration, &qd);
+        let a = plain.step(&model, &q, &qd, &reference, 1e-3);
+        let b = shared_work.step_with(
+            &model,
+            &q,
+            &qd,
+            &configuration,
+            &kinematics,
+            &reference,
+            1e-3,
+        );
+        assert_eq!(a, b, "period {k}");
+    }
+}

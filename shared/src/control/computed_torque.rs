@@ -161,7 +161,27 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
         reference: &TaskReference<T>,
         dt: T,
     ) -> ControlOutput<T> {
-        match self.track(model, q, qd, reference, dt) {
+        let configuration = model.configuration(q);
+        let kinematics = model.task_kinematics(&configuration, qd);
+        self.step_with(model, q, qd, &configuration, &kinematics, reference, dt)
+    }
+
+    /// [`Self::step`] with the configuration and the flange kinematics at
+    /// `(q, qd)` already computed by the caller: a control loop that needs the
+    /// flange pose anyway (the pick measures its tool point every period)
+    /// evaluates the sines, cosines and frame chain once, not twice.
+    #[allow(clippy::too_many_arguments)]
+    pub fn step_with<M: TaskSpaceModel<T>>(
+        &mut self,
+        model: &M,
+        q: &Joints<T>,
+        qd: &Joints<T>,
+        configuration: &M::Configuration,
+        kinematics: &TaskKinematics<T>,
+        reference: &TaskReference<T>,
+        dt: T,
+    ) -> ControlOutput<T> {
+        match self.track(model, q, qd, configuration, kinematics, reference, dt) {
             Ok(output) => output,
             Err(error) => self.hold(model, q, error),
         }
@@ -170,23 +190,25 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
     /// Eq 23 with integral action. On failure the integral is untouched; the
     /// (already checked finite) `q` is kept as the last finite configuration
     /// for the gravity hold.
+    #[allow(clippy::too_many_arguments)]
     fn track<M: TaskSpaceModel<T>>(
         &mut self,
         model: &M,
         q: &Joints<T>,
         qd: &Joints<T>,
+        configuration: &M::Configuration,
+        kinematics: &TaskKinematics<T>,
         reference: &TaskReference<T>,
         dt: T,
     ) -> Result<ControlOutput<T>, ControlError> {
         check_inputs(q, qd, reference, dt)?;
         self.last_finite_q = Some(*q);
 
-        let configuration = model.configuration(q);
         let TaskKinematics {
             base_from_flange,
             jacobian,
             jacobian_dot_qd: jdot_qd,
-        } = model.task_kinematics(&configuration, qd);
+        } = *kinematics;
         if !pose_is_finite(&base_from_flange) {
             return Err(ControlError::NonFiniteResult(
                 ControlStage::ForwardKinematics,
@@ -234,7 +256,7 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
                 ControlStage::JointAccelerationSolve,
             ));
         }
-        let tau_unsaturated = model.inverse_dynamics(&configuration, qd, &solution.x);
+        let tau_unsaturated = model.inverse_dynamics(configuration, qd, &solution.x);
         if !all_finite(&tau_unsaturated) {
             return Err(ControlError::NonFiniteResult(ControlStage::InverseDynamics));
         }

@@ -50,7 +50,9 @@ use super::joint_observer::JointObserver;
 use super::joint_speed::JointSpeedWindow;
 use super::tool::{tool_point_base, TOOL_LENGTH_M};
 use crate::calibration::SelfCalibrator;
-use crate::control::{ControllerConfig, TaskReference, TaskSpaceController, TaskSpaceModel};
+use crate::control::{
+    ControllerConfig, TaskKinematics, TaskReference, TaskSpaceController, TaskSpaceModel,
+};
 use crate::fusion::conveyor::wrap_pi;
 use crate::fusion::{ConveyorFilter, ConveyorState, LatchedSample};
 use crate::planning::{
@@ -60,7 +62,7 @@ use crate::protocol::{
     ActuatorCommand, CellConfig, FaultCause, GripperCommand, Message, PickPhase, PickTelemetry,
     SensorSample,
 };
-use crate::robot::{DriveOptions, JointVector, Puma560, SIMULATOR_COULOMB_WIDTH};
+use crate::robot::{DriveOptions, JointTrig, JointVector, Puma560, SIMULATOR_COULOMB_WIDTH};
 
 /// The controller's calibrator: 96 frames and 64 sightings of the marks (about
 /// 13 KiB), the same in the firmware and in the simulator.
@@ -508,9 +510,12 @@ impl PickController {
         }
         let encoder_speed = self.speed_window.push(&q_measured, sample.time_us);
         let q = self.observer.q();
-        let flange = self
-            .model
-            .forward_kinematics_with(&TaskSpaceModel::configuration(&self.model, &q));
+        // One configuration (sines, cosines) and one frame chain per period,
+        // for the measured tool point here and for Eq 23 below.
+        let configuration = TaskSpaceModel::configuration(&self.model, &q);
+        let kinematics =
+            TaskSpaceModel::task_kinematics(&self.model, &configuration, &self.observer.qd());
+        let flange = kinematics.base_from_flange;
         self.tool_measured = tool_point_base(&flange);
         self.flange_measured = flange.translation.vector;
         let x_axis = flange.rotation * Vector3::x();
@@ -562,7 +567,13 @@ impl PickController {
             self.supervise_speed(&qd);
         }
         self.guard_reach();
-        let tau = self.control(&q, &q_measured, encoder_speed.as_ref(), dt_s);
+        let tau = self.control(
+            &q,
+            &q_measured,
+            encoder_speed.as_ref(),
+            (&configuration, &kinematics),
+            dt_s,
+        );
         self.emit_telemetry(&part, out);
         ActuatorCommand {
             seq: sample.seq,
@@ -580,6 +591,7 @@ impl PickController {
         q: &JointVector<f32>,
         q_measured: &JointVector<f32>,
         encoder_speed: Option<&JointVector<f32>>,
+        (configuration, kinematics): (&JointTrig<f32>, &TaskKinematics<f32>),
         dt_s: f32,
     ) -> [f32; 6] {
         let qd = self.observer.qd();
@@ -593,9 +605,15 @@ impl PickController {
             acceleration: self.reference.acceleration6(),
         };
         let dt = if dt_s > 0.0 { dt_s } else { 1e-3 };
-        let output = self
-            .controller
-            .step(&self.model, q, &self.observer.qd(), &reference, dt);
+        let output = self.controller.step_with(
+            &self.model,
+            q,
+            &qd,
+            configuration,
+            kinematics,
+            &reference,
+            dt,
+        );
         if output.fallback.is_some() {
             self.raise(FaultCause::ControlFailure);
             self.engage_brake();
