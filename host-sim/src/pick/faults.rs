@@ -20,7 +20,6 @@ use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 use serde::Serialize;
-use shared::protocol::FaultCause;
 
 use super::montecarlo::trial_seed;
 use super::record::{PickResult, PickRun};
@@ -310,7 +309,7 @@ pub fn run_trial(experiment: &PickExperiment, base_seed: u64, trial: usize) -> F
         result,
         success: error.is_none() && run.result == PickResult::Success,
         stop_cause: match run.result {
-            PickResult::Fault(cause) if error.is_none() => Some(cause_name(cause)),
+            PickResult::Fault(cause) if error.is_none() => Some(format!("{cause:?}")),
             _ => None,
         },
         max_speed_ratio: run.max_speed_ratio,
@@ -319,10 +318,6 @@ pub fn run_trial(experiment: &PickExperiment, base_seed: u64, trial: usize) -> F
         end_joint_speed_rad_s: run.end_joint_speed_rad_s,
         violations: found,
     }
-}
-
-fn cause_name(cause: FaultCause) -> String {
-    format!("{cause:?}")
 }
 
 /// The fault-against-outcome table (markdown).

@@ -131,11 +131,6 @@ impl ViewMonitor {
         });
     }
 
-    /// Stops watching (the part left the disc, or the pick stopped).
-    pub fn disarm(&mut self) {
-        self.projector = None;
-    }
-
     pub fn last(&self) -> ViewResiduals {
         self.last
     }
