@@ -150,6 +150,7 @@ pub async fn control_loop(mut plant: active::Plant, cycles: active::Cycles, sour
             controller.stop(FaultCause::LinkLost);
         }
         let mut extra: Vec<Message, MAX_TICK_MESSAGES> = Vec::new();
+        controller.set_link_frames_rejected(stats::FRAMES_REJECTED.load(Ordering::Relaxed));
         let command = controller.on_sensor_sample(&sample, &mut extra);
         hand_on_events(controller, *session);
         match source {

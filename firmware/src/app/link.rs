@@ -167,7 +167,12 @@ pub async fn link_task(
                 }
                 Err(e) => {
                     defmt::warn!("link: frame rejected: {}", defmt::Display2Format(&e));
-                    Some(session.responder.on_decode_error(&e))
+                    let report = session.responder.on_decode_error(&e);
+                    stats::FRAMES_REJECTED.store(
+                        session.responder.status().frames_rejected,
+                        Ordering::Relaxed,
+                    );
+                    Some(report)
                 }
             };
             if let Some(reply) = reply {

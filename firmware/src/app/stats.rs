@@ -35,6 +35,10 @@ pub static MESSAGES_DROPPED: AtomicU32 = AtomicU32::new(0);
 /// Observations, triggers or news dropped between tasks (queue full).
 pub static HANDOFFS_DROPPED: AtomicU32 = AtomicU32::new(0);
 
+/// Frames from the host the link's decoder refused (written by the link task,
+/// reported by the control loop in the pick's telemetry).
+pub static FRAMES_REJECTED: AtomicU32 = AtomicU32::new(0);
+
 pub fn count_dropped_message() {
     MESSAGES_DROPPED.fetch_add(1, Ordering::Relaxed);
 }

@@ -13,10 +13,11 @@ const RECV_CHUNK: usize = 4096;
 pub struct FramedLink<L: ByteLink> {
     link: L,
     decoder: FrameDecoder,
-    /// Decoded replies not yet handed out, oldest first.
-    inbox: VecDeque<Message>,
+    /// Decoded replies (or the decoder's refusals) not yet handed out, oldest first.
+    inbox: VecDeque<Result<Message, String>>,
     bytes_sent: u64,
     bytes_received: u64,
+    frames_rejected: u64,
 }
 
 impl<L: ByteLink> FramedLink<L> {
@@ -27,6 +28,7 @@ impl<L: ByteLink> FramedLink<L> {
             inbox: VecDeque::new(),
             bytes_sent: 0,
             bytes_received: 0,
+            frames_rejected: 0,
         }
     }
 
@@ -47,13 +49,16 @@ impl<L: ByteLink> FramedLink<L> {
         self.link.send(bytes)
     }
 
-    /// The next reply, waiting at most `timeout`.
+    /// The next reply, waiting at most `timeout`. A frame the decoder refuses
+    /// is returned as [`LinkError::CorruptReply`] in its place among the
+    /// replies (the replies after it are kept) and counted in
+    /// [`Self::frames_rejected`].
     pub fn recv(&mut self, timeout: Duration, expecting: &str) -> Result<Message, LinkError> {
         let deadline = Instant::now() + timeout;
         let mut chunk = [0u8; RECV_CHUNK];
         loop {
-            if let Some(message) = self.inbox.pop_front() {
-                return Ok(message);
+            if let Some(reply) = self.inbox.pop_front() {
+                return reply.map_err(LinkError::CorruptReply);
             }
             let left = deadline.saturating_duration_since(Instant::now());
             if left.is_zero() {
@@ -66,8 +71,11 @@ impl<L: ByteLink> FramedLink<L> {
             self.bytes_received += n as u64;
             for &byte in chunk.iter().take(n) {
                 match self.decoder.push(byte) {
-                    Some(Ok(message)) => self.inbox.push_back(message),
-                    Some(Err(e)) => return Err(LinkError::CorruptReply(e.to_string())),
+                    Some(Ok(message)) => self.inbox.push_back(Ok(message)),
+                    Some(Err(e)) => {
+                        self.frames_rejected += 1;
+                        self.inbox.push_back(Err(e.to_string()));
+                    }
                     None => {}
                 }
             }
@@ -78,6 +86,20 @@ impl<L: ByteLink> FramedLink<L> {
                 });
             }
         }
+    }
+
+    /// Frames from the controller the decoder refused so far.
+    pub fn frames_rejected(&self) -> u64 {
+        self.frames_rejected
+    }
+
+    /// The link under the framing (its counters, its switches).
+    pub fn inner(&self) -> &L {
+        &self.link
+    }
+
+    pub fn inner_mut(&mut self) -> &mut L {
+        &mut self.link
     }
 
     /// Bytes sent and received so far.

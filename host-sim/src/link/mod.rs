@@ -13,6 +13,7 @@ pub mod check;
 pub mod cli;
 mod framed;
 mod in_process;
+mod noisy;
 mod serial;
 mod tcp;
 
@@ -21,6 +22,7 @@ use std::time::Duration;
 
 pub use framed::FramedLink;
 pub use in_process::InProcessLink;
+pub use noisy::{DirectionCounts, NoiseConfig, NoiseCounts, NoisyLink, TelemetryCheck};
 pub use serial::SerialPortLink;
 pub use tcp::TcpLink;
 
@@ -40,6 +42,12 @@ pub trait ByteLink {
     /// empty `recv` means none will come and waiting is pointless).
     fn replies_are_synchronous(&self) -> bool {
         false
+    }
+
+    /// What a noise injector on this link did ([`NoisyLink`]); `None` for a
+    /// clean link.
+    fn noise(&self) -> Option<NoiseCounts> {
+        None
     }
 }
 

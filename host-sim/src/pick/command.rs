@@ -9,10 +9,12 @@ use anyhow::{anyhow, Context, Result};
 use clap::Args;
 
 use super::record::PickRun;
-use super::report::{results_table, summary_line, write_run_outputs};
+use super::report::{link_line, results_table, summary_line, write_run_outputs};
 use super::runner::run_pick;
 use super::scenario::{PickExperiment, PickScenarioFile};
-use crate::link::{ByteLink, FramedLink, InProcessLink, SerialPortLink, TcpLink};
+use crate::link::{
+    ByteLink, FramedLink, InProcessLink, NoiseConfig, NoisyLink, SerialPortLink, TcpLink,
+};
 
 /// Options of the default run.
 #[derive(Args, Debug, Clone)]
@@ -36,9 +38,26 @@ pub struct PickArgs {
     /// firmware's UART) or `serial:PATH[@BAUD]` (a board).
     #[arg(long, default_value = "in-process")]
     pub link: String,
+    /// Damage this fraction of the link's bytes, both ways (flip a bit, drop
+    /// the byte or insert one; e.g. 1e-3): lost frames are sent again, and the
+    /// run's link figures are printed.
+    #[arg(long, default_value_t = 0.0, value_parser = parse_rate)]
+    pub link_noise: f64,
+    /// Seed of the link noise.
+    #[arg(long, default_value_t = 1)]
+    pub link_noise_seed: u64,
     /// Print the embedded default scenario file and exit.
     #[arg(long)]
     pub print_scenario: bool,
+}
+
+fn parse_rate(text: &str) -> Result<f64, String> {
+    let rate: f64 = text.parse().map_err(|e| format!("not a number: {e}"))?;
+    if (0.0..=0.5).contains(&rate) {
+        Ok(rate)
+    } else {
+        Err(format!("{rate} is not a byte error rate in [0, 0.5]"))
+    }
 }
 
 impl Default for PickArgs {
@@ -50,30 +69,50 @@ impl Default for PickArgs {
             out: PathBuf::from("pick-out"),
             no_plots: false,
             link: "in-process".to_string(),
+            link_noise: 0.0,
+            link_noise_seed: 1,
             print_scenario: false,
         }
     }
 }
 
-fn run_on_link(experiment: &PickExperiment, seed: u64, link: &str) -> Result<PickRun> {
-    fn go<L: ByteLink>(experiment: &PickExperiment, seed: u64, link: L) -> Result<PickRun> {
-        let mut framed = FramedLink::new(link);
-        run_pick(experiment, seed, &mut framed)
+fn run_on_link(experiment: &PickExperiment, seed: u64, args: &PickArgs) -> Result<PickRun> {
+    fn go<L: ByteLink>(
+        experiment: &PickExperiment,
+        seed: u64,
+        link: L,
+        args: &PickArgs,
+    ) -> Result<PickRun> {
+        if args.link_noise > 0.0 {
+            let noise = NoiseConfig {
+                byte_error_rate: args.link_noise,
+                seed: args.link_noise_seed,
+            };
+            run_pick(
+                experiment,
+                seed,
+                &mut FramedLink::new(NoisyLink::new(link, noise)),
+            )
+        } else {
+            run_pick(experiment, seed, &mut FramedLink::new(link))
+        }
     }
+    let link = args.link.as_str();
     if link == "in-process" {
-        go(experiment, seed, InProcessLink::new())
+        go(experiment, seed, InProcessLink::new(), args)
     } else if let Some(addr) = link.strip_prefix("tcp:") {
         go(
             experiment,
             seed,
             TcpLink::connect(addr, Duration::from_secs(5))?,
+            args,
         )
     } else if let Some(spec) = link.strip_prefix("serial:") {
         let (path, baud) = match spec.split_once('@') {
             Some((path, baud)) => (path, baud.parse().context("serial baud rate")?),
             None => (spec, 115_200),
         };
-        go(experiment, seed, SerialPortLink::open(path, baud)?)
+        go(experiment, seed, SerialPortLink::open(path, baud)?, args)
     } else {
         Err(anyhow!(
             "unknown --link {link}: use in-process, tcp:HOST:PORT or serial:PATH[@BAUD]"
@@ -113,7 +152,7 @@ pub fn run_pick_command(args: &PickArgs) -> Result<()> {
     let mut runs = Vec::new();
     for experiment in &experiments {
         let started = Instant::now();
-        let run = run_on_link(experiment, args.seed, &args.link)
+        let run = run_on_link(experiment, args.seed, args)
             .with_context(|| format!("experiment {}", experiment.name))?;
         println!(
             "{}  [{:.1} s simulated in {:.1} s]",
@@ -121,6 +160,9 @@ pub fn run_pick_command(args: &PickArgs) -> Result<()> {
             run.duration_s,
             started.elapsed().as_secs_f64()
         );
+        if let Some(line) = link_line(&run) {
+            println!("  {line}");
+        }
         if !args.no_plots {
             let written = write_run_outputs(&run, &args.out)
                 .with_context(|| format!("writing outputs of {}", experiment.name))?;

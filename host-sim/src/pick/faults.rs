@@ -24,10 +24,11 @@ use serde::Serialize;
 use super::montecarlo::trial_seed;
 use super::record::{PickResult, PickRun};
 use super::report::result_name;
-use super::runner::run_pick_in_process;
+use super::runner::{run_pick_in_process, run_pick_in_process_noisy};
 use super::scenario::{
     CameraBump, FaultWindow, MissedCounts, PickExperiment, PickScenarioFile, SpeedChange,
 };
+use crate::link::NoiseConfig;
 
 /// The gripper strikes the disc if its grasp point comes lower than this above
 /// the disc's surface while not holding the part (parts are 40 mm or more high,
@@ -86,10 +87,15 @@ pub enum FaultKind {
     VisionOutage,
     /// The control loop stalls for a while.
     ControlStall,
+    /// The serial line damages 1e-3 of the bytes both ways (flips, drops, inserts).
+    NoisyLink,
 }
 
+/// The byte error rate of [`FaultKind::NoisyLink`] (the figure).
+pub const NOISY_LINK_BYTE_ERROR_RATE: f64 = 1e-3;
+
 impl FaultKind {
-    pub const ALL: [FaultKind; 13] = [
+    pub const ALL: [FaultKind; 14] = [
         FaultKind::None,
         FaultKind::Dropouts50,
         FaultKind::Outliers1,
@@ -103,6 +109,7 @@ impl FaultKind {
         FaultKind::ConveyorReverses,
         FaultKind::VisionOutage,
         FaultKind::ControlStall,
+        FaultKind::NoisyLink,
     ];
 
     pub fn name(self) -> &'static str {
@@ -120,6 +127,7 @@ impl FaultKind {
             FaultKind::ConveyorReverses => "conveyor reverses",
             FaultKind::VisionOutage => "link: vision link lost",
             FaultKind::ControlStall => "control loop stalls",
+            FaultKind::NoisyLink => "link: 1e-3 of the bytes damaged",
         }
     }
 
@@ -146,6 +154,9 @@ pub fn inject(
     let speed = e.conveyor.speed_rad_s;
     let description = match kind {
         FaultKind::None => "no fault".to_owned(),
+        FaultKind::NoisyLink => format!(
+            "{NOISY_LINK_BYTE_ERROR_RATE:e} of the bytes flipped, dropped or inserted, both ways"
+        ),
         FaultKind::Dropouts50 => {
             e.camera.dropout_probability = 0.5;
             "dropout probability 0.5".to_owned()
@@ -243,9 +254,45 @@ pub struct FaultTrial {
     pub violations: Vec<String>,
 }
 
-/// The invariants of a safe run (see the module's doc).
+/// Runs `faulty` (fault `kind` injected) in process; through a noisy line
+/// for [`FaultKind::NoisyLink`].
+fn run_faulty(faulty: &PickExperiment, kind: FaultKind, seed: u64) -> Result<PickRun> {
+    match kind {
+        FaultKind::NoisyLink => run_pick_in_process_noisy(
+            faulty,
+            seed,
+            NoiseConfig {
+                byte_error_rate: NOISY_LINK_BYTE_ERROR_RATE,
+                seed,
+            },
+        ),
+        _ => run_pick_in_process(faulty, seed),
+    }
+}
+
+/// The invariants of a safe run (see the module's doc), and of a sound link:
+/// no damaged frame taken for a message, every refusal counted by the side
+/// that refused it (the controller in its telemetry).
 pub fn violations(run: &PickRun) -> Vec<String> {
     let mut found = Vec::new();
+    if let Some(noise) = run.link.noise {
+        let forged = noise.to_controller.forged + noise.to_host.forged;
+        if forged > 0 {
+            found.push(format!("{forged} damaged frames accepted as messages"));
+        }
+        if noise.telemetry.mismatched > 0 {
+            found.push(format!(
+                "{} of {} telemetry messages miscounted the refused frames",
+                noise.telemetry.mismatched, noise.telemetry.checked
+            ));
+        }
+        if run.link.replies_refused != noise.to_host.frames_rejected {
+            found.push(format!(
+                "the host counted {} refused replies, the line damaged {} into refusals",
+                run.link.replies_refused, noise.to_host.frames_rejected
+            ));
+        }
+    }
     if run.max_speed_ratio.is_nan() || run.max_speed_ratio > 1.0 {
         found.push(format!(
             "joint speed {:.2} x its limit",
@@ -289,7 +336,7 @@ pub fn run_trial(experiment: &PickExperiment, base_seed: u64, trial: usize) -> F
     let seed = trial_seed(base_seed, trial);
     let kind = FaultKind::of_trial(trial);
     let (faulty, fault) = inject(experiment, kind, &mut trial_rng(seed));
-    let (run, error) = match run_pick_in_process(&faulty, seed) {
+    let (run, error) = match run_faulty(&faulty, kind, seed) {
         Ok(run) => (run, None),
         Err(error) => (PickRun::empty(&faulty.name, seed), Some(format!("{error}"))),
     };
@@ -415,8 +462,11 @@ fn replay(args: &FaultCampaignArgs, experiment: &PickExperiment, trial: usize) -
     let kind = FaultKind::of_trial(trial);
     let (faulty, fault) = inject(experiment, kind, &mut trial_rng(seed));
     println!("trial {trial} (seed {seed}): {} ({fault})", kind.name());
-    let run = run_pick_in_process(&faulty, seed)?;
+    let run = run_faulty(&faulty, kind, seed)?;
     super::report::write_run_outputs(&run, &args.out)?;
+    if let Some(line) = super::report::link_line(&run) {
+        println!("{line}");
+    }
     let unsafe_list = violations(&run);
     println!(
         "result: {}; worst speed {:.2} and torque {:.2} of their limits; lowest gripper over the disc {:.1} mm; {}",

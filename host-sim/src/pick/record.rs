@@ -5,6 +5,8 @@
 use serde::{Deserialize, Serialize};
 use shared::protocol::{CalibrationReport, FaultCause, PickPhase};
 
+use crate::link::NoiseCounts;
+
 /// One sample of the run (every telemetry period of the controller).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TickRecord {
@@ -88,6 +90,26 @@ pub struct CellLayout {
     pub drop_off_base_m: [f64; 3],
 }
 
+/// What the serial link went through during the run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct LinkRecord {
+    /// Sensor samples sent again because their command did not come back
+    /// (lost on the way there or back).
+    pub samples_resent: u64,
+    /// Handshake and configuration messages sent again.
+    pub session_resends: u64,
+    /// Commands that came after their period was answered (a resend's echo).
+    pub stale_commands: u64,
+    /// Frames from the controller the host's decoder refused.
+    pub replies_refused: u64,
+    /// The controller's reports of frames it refused (`ErrorReport`s of a decode error).
+    pub refusals_reported: u64,
+    /// `PickTelemetry::frames_rejected` in the last telemetry received.
+    pub controller_frames_rejected: u32,
+    /// What a noise injector did, when the link has one.
+    pub noise: Option<NoiseCounts>,
+}
+
 /// Everything one pick produced.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PickRun {
@@ -114,6 +136,8 @@ pub struct PickRun {
     /// must leave the arm at rest.
     #[serde(default)]
     pub end_joint_speed_rad_s: f64,
+    #[serde(default)]
+    pub link: LinkRecord,
 }
 
 impl PickRun {
@@ -140,6 +164,7 @@ impl PickRun {
             max_torque_ratio: f64::NAN,
             min_tool_clearance_m: f64::NAN,
             end_joint_speed_rad_s: f64::NAN,
+            link: LinkRecord::default(),
         }
     }
 }

@@ -430,6 +430,50 @@ pub(crate) fn wrap_angle_rad(angle: f64) -> f64 {
     shared::calibration::effector::wrap_angle(angle)
 }
 
+/// The link's figures of a run, when anything went wrong on it (a noisy line,
+/// resends): what was damaged, what each side refused, and that the
+/// controller's telemetry counted every refusal.
+pub fn link_line(run: &PickRun) -> Option<String> {
+    let link = &run.link;
+    let noise = link
+        .noise
+        .filter(|n| n.to_controller.damaged_bytes() + n.to_host.damaged_bytes() > 0);
+    if noise.is_none() && link.samples_resent == 0 && link.replies_refused == 0 {
+        return None;
+    }
+    let mut line = format!(
+        "link: {} samples sent again, {} stale commands, {} session resends; \
+         the controller refused {} frames (telemetry), the host {}",
+        link.samples_resent,
+        link.stale_commands,
+        link.session_resends,
+        link.controller_frames_rejected,
+        link.replies_refused
+    );
+    if let Some(n) = noise {
+        let (up, down) = (n.to_controller, n.to_host);
+        line.push_str(&format!(
+            "; noise: {} of {} bytes damaged to the controller ({} of {} frames lost, {} refusals), \
+             {} of {} to the host ({} of {} frames lost, {} refusals); forged frames: {}; \
+             telemetry counted every refusal in {} of {} messages",
+            up.damaged_bytes(),
+            up.bytes,
+            up.frames_sent - up.frames_delivered.min(up.frames_sent),
+            up.frames_sent,
+            up.frames_rejected,
+            down.damaged_bytes(),
+            down.bytes,
+            down.frames_sent - down.frames_delivered.min(down.frames_sent),
+            down.frames_sent,
+            down.frames_rejected,
+            up.forged + down.forged,
+            n.telemetry.checked - n.telemetry.mismatched.min(n.telemetry.checked),
+            n.telemetry.checked
+        ));
+    }
+    Some(line)
+}
+
 /// A synthetic pick of `records` samples at 100 Hz, for the tests, the
 /// benchmark of the figures and a look at the outputs without a simulation: the
 /// part turns on the disc, the estimate (with a small bias and ripple) appears
@@ -571,6 +615,7 @@ pub fn synthetic_run(experiment: &str, records: usize) -> PickRun {
         max_torque_ratio: 0.7,
         min_tool_clearance_m: 0.02,
         end_joint_speed_rad_s: 0.0,
+        link: Default::default(),
     }
 }
 

@@ -12,52 +12,147 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context, Result};
 use shared::protocol::{
-    ControllerMode, FaultCause, Message, MessageKind, PickPhase, PickTelemetry, PROTOCOL_VERSION,
+    ControllerMode, ErrorCode, FaultCause, Message, MessageKind, PickPhase, PickTelemetry,
+    PROTOCOL_VERSION,
 };
 
-use super::record::{CalibrationRecord, GraspRecord, PhaseEvent, PickResult, PickRun, TickRecord};
+use super::record::{
+    CalibrationRecord, GraspRecord, LinkRecord, PhaseEvent, PickResult, PickRun, TickRecord,
+};
 use super::scenario::PickExperiment;
 use super::world::{World, WorldTruth};
-use crate::link::{ByteLink, FramedLink};
+use crate::link::{ByteLink, FramedLink, LinkError, NoiseConfig, NoisyLink};
 use crate::workcell::geometry::angle_distance;
-
-/// How long to wait for one reply (a real board or an emulator may be slow).
-const REPLY_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// Seconds the run goes on after the controller reports Done or Faulted, to
 /// see the arm come to rest and stay there.
 const SETTLE_AFTER_END_S: f64 = 0.5;
 
-/// Opens the session and sends the cell configuration.
-fn open_session<L: ByteLink>(link: &mut FramedLink<L>, world: &World) -> Result<()> {
-    let mut peer_name = heapless::String::new();
-    let _ = peer_name.push_str("host-sim pick");
-    link.send(&Message::Hello {
-        protocol_version: PROTOCOL_VERSION,
-        peer_name,
-    })?;
-    loop {
-        match link.recv(REPLY_TIMEOUT, "HelloAck")? {
-            Message::HelloAck { .. } => break,
-            // Reports of frames refused before this session (stale bytes on a
-            // board's UART), and what an earlier session's last control period
-            // queued behind its command (a restart after a stop).
-            Message::ErrorReport { .. }
-            | Message::Telemetry(_)
-            | Message::CalibrationReport(_)
-            | Message::ActuatorCommand(_)
-            | Message::Ack { .. } => continue,
-            other => bail!("expected HelloAck, got {other:?}"),
+/// How long to wait for a reply before sending the request again. A noisy
+/// line loses frames both ways; the in-process link answers at once, so there
+/// a lost reply is known at once and this wait is never spent.
+const RESEND_AFTER: Duration = Duration::from_millis(1_000);
+
+/// Sends of one request (a sample, the handshake, the configuration) before
+/// the run gives up on the link: at [`RESEND_AFTER`] apart, 10 s in all (a
+/// real board or an emulator may be slow to answer).
+const MAX_SENDS: u32 = 10;
+
+/// An error report that says the controller refused a damaged frame (the
+/// frame is lost; the sender finds out by the missing reply).
+fn is_refusal(code: ErrorCode) -> bool {
+    matches!(
+        code,
+        ErrorCode::CorruptFrame
+            | ErrorCode::BadCrc
+            | ErrorCode::OversizedFrame
+            | ErrorCode::BadMessage
+    )
+}
+
+/// What the runner saw of the link, counted into the run's [`LinkRecord`].
+#[derive(Default)]
+struct LinkTally {
+    record: LinkRecord,
+}
+
+impl LinkTally {
+    fn on_telemetry(&mut self, telemetry: &PickTelemetry) {
+        self.record.controller_frames_rejected = telemetry.frames_rejected;
+    }
+
+    /// Sorts out a failed receive: a lost reply (`Ok(true)`: send again), a
+    /// refused frame (`Ok(false)`: keep waiting) or a dead link (`Err`).
+    fn on_recv_error(&mut self, error: LinkError) -> Result<bool> {
+        match error {
+            LinkError::Timeout { .. } => Ok(true),
+            LinkError::CorruptReply(_) => {
+                self.record.replies_refused += 1;
+                Ok(false)
+            }
+            other => Err(other.into()),
         }
     }
-    link.send(&Message::Configure(world.cell_config()))?;
-    match link.recv(REPLY_TIMEOUT, "Ack of the cell configuration")? {
-        Message::Ack {
-            kind: MessageKind::Configure,
-            ..
-        } => Ok(()),
-        other => bail!("the controller refused the cell configuration: {other:?}"),
+}
+
+/// Sends `request` until `accept` takes a reply (`Some`), at most
+/// [`MAX_SENDS`] times; replies `accept` passes over (`None`) are skipped.
+fn request<L: ByteLink, T>(
+    link: &mut FramedLink<L>,
+    tally: &mut LinkTally,
+    request: &Message,
+    expecting: &str,
+    mut accept: impl FnMut(Message) -> Result<Option<T>>,
+) -> Result<T> {
+    for send in 0..MAX_SENDS {
+        if send > 0 {
+            tally.record.session_resends += 1;
+        }
+        link.send(request)?;
+        loop {
+            match link.recv(RESEND_AFTER, expecting) {
+                Ok(Message::ErrorReport { code, .. }) if is_refusal(code) => {
+                    tally.record.refusals_reported += 1;
+                }
+                Ok(message) => {
+                    if let Some(value) = accept(message)? {
+                        return Ok(value);
+                    }
+                }
+                Err(e) => {
+                    if tally.on_recv_error(e)? {
+                        break;
+                    }
+                }
+            }
+        }
     }
+    bail!(
+        "no {expecting} from {} after {MAX_SENDS} sends",
+        link.describe()
+    )
+}
+
+/// Opens the session and sends the cell configuration.
+fn open_session<L: ByteLink>(
+    link: &mut FramedLink<L>,
+    tally: &mut LinkTally,
+    world: &World,
+) -> Result<()> {
+    let mut peer_name = heapless::String::new();
+    let _ = peer_name.push_str("host-sim pick");
+    let hello = Message::Hello {
+        protocol_version: PROTOCOL_VERSION,
+        peer_name,
+    };
+    request(link, tally, &hello, "HelloAck", |message| match message {
+        Message::HelloAck { .. } => Ok(Some(())),
+        // Reports of frames refused before this session (stale bytes on a
+        // board's UART), and what an earlier session's last control period
+        // queued behind its command (a restart after a stop).
+        Message::ErrorReport { .. }
+        | Message::Telemetry(_)
+        | Message::CalibrationReport(_)
+        | Message::ActuatorCommand(_)
+        | Message::Ack { .. } => Ok(None),
+        other => bail!("expected HelloAck, got {other:?}"),
+    })?;
+    let configure = Message::Configure(world.cell_config());
+    request(
+        link,
+        tally,
+        &configure,
+        "Ack of the cell configuration",
+        |message| match message {
+            Message::Ack {
+                kind: MessageKind::Configure,
+                ..
+            } => Ok(Some(())),
+            // A HelloAck of a Hello sent again (its first answer was lost late).
+            Message::HelloAck { .. } => Ok(None),
+            other => bail!("the controller refused the cell configuration: {other:?}"),
+        },
+    )
 }
 
 fn vector_sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -103,7 +198,8 @@ pub fn run_pick<L: ByteLink>(
 ) -> Result<PickRun> {
     let mut world = World::new(experiment, seed)
         .with_context(|| format!("building the world of {} (seed {seed})", experiment.name))?;
-    open_session(link, &world)?;
+    let mut tally = LinkTally::default();
+    open_session(link, &mut tally, &world)?;
     let model = *world.plant().model();
     let limits = *model.joint_limits();
 
@@ -146,62 +242,93 @@ pub fn run_pick<L: ByteLink>(
             link.send(&Message::CameraFeatures(frame))?;
         }
         let sample = world.sensor_sample();
-        link.send(&Message::SensorSample(sample))?;
         let truth = world.truth();
-        let command = loop {
-            match link.recv(REPLY_TIMEOUT, "ActuatorCommand")? {
-                Message::ActuatorCommand(command) if command.seq == sample.seq => break command,
-                Message::Telemetry(telemetry) => {
-                    if last_phase != Some(telemetry.phase) {
-                        last_phase = Some(telemetry.phase);
-                        phases.push(PhaseEvent {
-                            t_s: truth.time_s,
-                            phase: telemetry.phase,
-                        });
+        let command = 'exchange: {
+            for send in 0..MAX_SENDS {
+                if send > 0 {
+                    tally.record.samples_resent += 1;
+                }
+                link.send(&Message::SensorSample(sample))?;
+                loop {
+                    let reply = match link.recv(RESEND_AFTER, "ActuatorCommand") {
+                        Ok(reply) => reply,
+                        Err(e) => {
+                            if tally.on_recv_error(e)? {
+                                break;
+                            }
+                            continue;
+                        }
+                    };
+                    match reply {
+                        Message::ActuatorCommand(command) if command.seq == sample.seq => {
+                            break 'exchange command;
+                        }
+                        // The answer to a sample sent twice: its period is done.
+                        Message::ActuatorCommand(command) if command.seq < sample.seq => {
+                            tally.record.stale_commands += 1;
+                        }
+                        Message::Telemetry(telemetry) => {
+                            tally.on_telemetry(&telemetry);
+                            if last_phase != Some(telemetry.phase) {
+                                last_phase = Some(telemetry.phase);
+                                phases.push(PhaseEvent {
+                                    t_s: truth.time_s,
+                                    phase: telemetry.phase,
+                                });
+                            }
+                            if telemetry.fault.is_some() {
+                                last_fault = telemetry.fault;
+                            }
+                            if matches!(telemetry.phase, PickPhase::Done | PickPhase::Faulted)
+                                && ended_at.is_none()
+                            {
+                                ended_at = Some(truth.time_s);
+                            }
+                            latest_estimate = telemetry
+                                .part_base_m
+                                .map(|p| (to_f64(p), f64::from(telemetry.part_yaw_base_rad)));
+                            records.push(tick_record(&telemetry, &truth));
+                        }
+                        Message::CalibrationReport(report) => {
+                            let workcell = world.workcell();
+                            calibrations.push(CalibrationRecord {
+                                t_s: truth.time_s,
+                                report,
+                                true_camera_height_m: workcell.camera.height_m(),
+                                true_base_yaw_rad: workcell.base_from_disc_yaw_rad,
+                                true_base_translation_m: [
+                                    workcell.base_from_disc_translation_m.x,
+                                    workcell.base_from_disc_translation_m.y,
+                                    workcell.base_from_disc_translation_m.z,
+                                ],
+                            });
+                        }
+                        Message::Ack {
+                            kind: MessageKind::SensorSample,
+                            ..
+                        } => bail!(
+                            "the controller acknowledged a sensor sample instead of answering with joint torques: \
+                             its application does not run the pick (firmware older than the pick application?)"
+                        ),
+                        Message::Ack { .. } => {}
+                        Message::ErrorReport { code, .. } if is_refusal(code) => {
+                            tally.record.refusals_reported += 1;
+                        }
+                        Message::ErrorReport { code, detail } => {
+                            bail!("the controller reported {code:?} ({detail}) at t = {now:.3} s")
+                        }
+                        Message::Status(status) if status.mode == ControllerMode::Faulted => {
+                            bail!("the controller faulted its link")
+                        }
+                        other => bail!("unexpected reply {other:?} at t = {now:.3} s"),
                     }
-                    if telemetry.fault.is_some() {
-                        last_fault = telemetry.fault;
-                    }
-                    if matches!(telemetry.phase, PickPhase::Done | PickPhase::Faulted)
-                        && ended_at.is_none()
-                    {
-                        ended_at = Some(truth.time_s);
-                    }
-                    latest_estimate = telemetry
-                        .part_base_m
-                        .map(|p| (to_f64(p), f64::from(telemetry.part_yaw_base_rad)));
-                    records.push(tick_record(&telemetry, &truth));
                 }
-                Message::CalibrationReport(report) => {
-                    let workcell = world.workcell();
-                    calibrations.push(CalibrationRecord {
-                        t_s: truth.time_s,
-                        report,
-                        true_camera_height_m: workcell.camera.height_m(),
-                        true_base_yaw_rad: workcell.base_from_disc_yaw_rad,
-                        true_base_translation_m: [
-                            workcell.base_from_disc_translation_m.x,
-                            workcell.base_from_disc_translation_m.y,
-                            workcell.base_from_disc_translation_m.z,
-                        ],
-                    });
-                }
-                Message::Ack {
-                    kind: MessageKind::SensorSample,
-                    ..
-                } => bail!(
-                    "the controller acknowledged a sensor sample instead of answering with joint torques: \
-                     its application does not run the pick (firmware older than the pick application?)"
-                ),
-                Message::Ack { .. } => {}
-                Message::ErrorReport { code, detail } => {
-                    bail!("the controller reported {code:?} ({detail}) at t = {now:.3} s")
-                }
-                Message::Status(status) if status.mode == ControllerMode::Faulted => {
-                    bail!("the controller faulted its link")
-                }
-                other => bail!("unexpected reply {other:?} at t = {now:.3} s"),
             }
+            bail!(
+                "no ActuatorCommand for sample {} at t = {now:.3} s after {MAX_SENDS} sends over {}",
+                sample.seq,
+                link.describe()
+            )
         };
         let had_grasp = world.grasp().is_some();
         world
@@ -237,6 +364,25 @@ pub fn run_pick<L: ByteLink>(
             min_clearance = min_clearance.min(state.tool_base_m[2] - disc_top);
         }
     }
+
+    if link.inner().replies_are_synchronous() {
+        // What the last period left behind, so that the link's counts are whole.
+        loop {
+            match link.recv(Duration::from_millis(1), "the last replies") {
+                Ok(Message::Telemetry(telemetry)) => tally.on_telemetry(&telemetry),
+                Ok(Message::ErrorReport { code, .. }) if is_refusal(code) => {
+                    tally.record.refusals_reported += 1;
+                }
+                Ok(_) => {}
+                Err(e) => {
+                    if tally.on_recv_error(e)? {
+                        break;
+                    }
+                }
+            }
+        }
+    }
+    tally.record.noise = link.inner().noise();
 
     let duration_s = world.time_s();
     let end_joint_speed_rad_s = world
@@ -282,11 +428,23 @@ pub fn run_pick<L: ByteLink>(
             f64::NAN
         },
         end_joint_speed_rad_s,
+        link: tally.record,
     })
 }
 
 /// A pick against the controller linked into this process.
 pub fn run_pick_in_process(experiment: &PickExperiment, seed: u64) -> Result<PickRun> {
     let mut link = FramedLink::new(crate::link::InProcessLink::new());
+    run_pick(experiment, seed, &mut link).map_err(|e| anyhow!("{e:#}"))
+}
+
+/// The same through a noisy line ([`NoisyLink`]): bytes flipped, dropped and
+/// inserted in both directions.
+pub fn run_pick_in_process_noisy(
+    experiment: &PickExperiment,
+    seed: u64,
+    noise: NoiseConfig,
+) -> Result<PickRun> {
+    let mut link = FramedLink::new(NoisyLink::new(crate::link::InProcessLink::new(), noise));
     run_pick(experiment, seed, &mut link).map_err(|e| anyhow!("{e:#}"))
 }

@@ -59,9 +59,15 @@ impl ControllerApp {
                 self.link.count_received();
                 let mut extra: Vec<Message, MAX_TICK_MESSAGES> = Vec::new();
                 if let Some(parts) = self.pick.as_mut() {
+                    let repeated = parts.control.repeats(sample);
+                    parts
+                        .control
+                        .set_link_frames_rejected(self.link.status().frames_rejected);
                     let command = parts.control.on_sensor_sample(sample, &mut extra);
-                    self.link
-                        .set_control_ticks(self.link.status().control_ticks.saturating_add(1));
+                    if !repeated {
+                        self.link
+                            .set_control_ticks(self.link.status().control_ticks.saturating_add(1));
+                    }
                     let _ = out.push(Message::ActuatorCommand(command));
                     if let Some(report) =
                         new_calibration_report(&parts.control, &mut self.reported_estimate)
@@ -205,4 +211,111 @@ fn config_field_index(field: &str) -> u32 {
         .position(|f| *f == field)
         .and_then(|i| u32::try_from(i).ok())
         .unwrap_or(u32::MAX)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::{SensorSample, JOINTS, PROTOCOL_VERSION};
+
+    fn config() -> CellConfig {
+        CellConfig {
+            image_width_px: 256,
+            image_height_px: 256,
+            f_px: 300.0,
+            cx_px: 128.0,
+            cy_px: 128.0,
+            pixel_sigma_px: 0.5,
+            reference_radius_m: 0.4,
+            part_feature_count: 4,
+            conveyor_counts_per_rev: 4096,
+            conveyor_counter_bits: 16,
+            joint_counts_per_rad: [10_000.0; JOINTS],
+            disc_height_in_base_m: None,
+            drop_off_base_m: [0.0, 0.55, 0.3],
+            camera_period_ms: 200,
+            telemetry_period_ticks: 1,
+        }
+    }
+
+    fn configured() -> ControllerApp {
+        let mut app = ControllerApp::new("test", 1000);
+        let mut out = Vec::new();
+        app.on_message(
+            &Message::Hello {
+                protocol_version: PROTOCOL_VERSION,
+                peer_name: heapless::String::new(),
+            },
+            &mut out,
+        );
+        app.on_message(&Message::Configure(config()), &mut out);
+        assert!(app.pick().is_some(), "{out:?}");
+        app
+    }
+
+    fn sample(seq: u32) -> SensorSample {
+        SensorSample {
+            seq,
+            time_us: 1_000 * u64::from(seq),
+            // Elbow up, away from the singularities.
+            joint_counts: [0, -8_000, 16_000, 0, 8_000, 0],
+            conveyor_counts: 3 * seq,
+            part_in_gripper: false,
+        }
+    }
+
+    fn exchange(app: &mut ControllerApp, sample: &SensorSample) -> Vec<Message, MAX_REPLIES> {
+        let mut out = Vec::new();
+        app.on_message(&Message::SensorSample(*sample), &mut out);
+        out
+    }
+
+    #[test]
+    fn a_sample_sent_again_gets_the_same_command_and_no_second_period() {
+        let mut app = configured();
+        for seq in 1..=50 {
+            exchange(&mut app, &sample(seq));
+        }
+        let first = exchange(&mut app, &sample(51));
+        let ticks = app.link().status().control_ticks;
+        let time_s = app.pick().map(|p| p.time_s());
+        let again = exchange(&mut app, &sample(51));
+        assert!(matches!(first.first(), Some(Message::ActuatorCommand(c)) if c.seq == 51));
+        // The same command, and nothing else (no second telemetry).
+        assert_eq!(again.len(), 1, "{again:?}");
+        assert_eq!(again.first(), first.first());
+        assert_eq!(app.link().status().control_ticks, ticks);
+        assert_eq!(app.pick().map(|p| p.time_s()), time_s);
+        // The next sample runs its period as usual.
+        let next = exchange(&mut app, &sample(52));
+        assert!(matches!(next.first(), Some(Message::ActuatorCommand(c)) if c.seq == 52));
+        assert_eq!(app.link().status().control_ticks, ticks + 1);
+    }
+
+    #[test]
+    fn a_sample_with_a_new_time_is_a_new_period_even_with_the_same_seq() {
+        let mut app = configured();
+        exchange(&mut app, &sample(1));
+        let mut later = sample(1);
+        later.time_us += 1_000;
+        exchange(&mut app, &later);
+        assert_eq!(app.link().status().control_ticks, 2);
+    }
+
+    #[test]
+    fn telemetry_reports_every_refused_frame() {
+        let mut app = configured();
+        exchange(&mut app, &sample(1));
+        app.on_decode_error(&DecodeError::Corrupt);
+        app.on_decode_error(&DecodeError::BadCrc {
+            expected: 1,
+            found: 2,
+        });
+        let out = exchange(&mut app, &sample(2));
+        let telemetry = out.iter().find_map(|m| match m {
+            Message::Telemetry(t) => Some(*t),
+            _ => None,
+        });
+        assert_eq!(telemetry.map(|t| t.frames_rejected), Some(2), "{out:?}");
+    }
 }

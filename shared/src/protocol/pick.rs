@@ -146,6 +146,9 @@ pub struct PickTelemetry {
     pub frames_unpaired: u32,
     /// Control periods whose torque was clipped to the drive limits.
     pub saturated_ticks: u32,
+    /// Frames from the host that the controller's decoder refused (corrupt,
+    /// bad CRC, oversized, not a message), since the controller started.
+    pub frames_rejected: u32,
 }
 
 /// The result of a self-calibration, summarised for telemetry (f32).

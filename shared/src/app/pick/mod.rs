@@ -249,6 +249,11 @@ pub struct PickController {
     speed_window: JointSpeedWindow,
     /// Engaged when the task-space stop cannot be trusted; then for good.
     brake: Option<JointBrake>,
+    /// The last period's command: the answer to a sample sent again because
+    /// the host lost its command on a noisy link (lock step).
+    last_command: Option<ActuatorCommand>,
+    /// Frames the link's decoder refused, for telemetry (set by the link's owner).
+    link_frames_rejected: u32,
 }
 
 /// Eq 23's gains for the pick (see [`ControllerConfig::puma560`]).
@@ -372,6 +377,8 @@ impl PickController {
             part_in_gripper: false,
             speed_window: JointSpeedWindow::new(),
             brake: None,
+            last_command: None,
+            link_frames_rejected: 0,
         })
     }
 
@@ -463,9 +470,37 @@ impl PickController {
         job.outcome.is_none() && now_s >= job.apply_at_s
     }
 
+    /// Whether `sample` is the last period's sample sent again: in lock step a
+    /// host that lost the command (a corrupt frame on the link) repeats the
+    /// sample, and the plant has not moved, so the period must not run twice.
+    pub fn repeats(&self, sample: &SensorSample) -> bool {
+        self.last_command.is_some_and(|c| c.seq == sample.seq)
+            && sample.time_us == self.last_time_us
+    }
+
+    /// The number of frames the link's decoder refused so far, reported in
+    /// telemetry (the link task owns the decoder; it hands the count over).
+    pub fn set_link_frames_rejected(&mut self, frames: u32) {
+        self.link_frames_rejected = frames;
+    }
+
     /// One control period: the sensor sample in, the actuator command (and any
-    /// telemetry) out.
+    /// telemetry) out. A repeated sample ([`Self::repeats`]) is answered with
+    /// the same command and nothing else; no period runs.
     pub fn on_sensor_sample(
+        &mut self,
+        sample: &SensorSample,
+        out: &mut Vec<Message, MAX_TICK_MESSAGES>,
+    ) -> ActuatorCommand {
+        if let (true, Some(command)) = (self.repeats(sample), self.last_command) {
+            return command;
+        }
+        let command = self.run_period(sample, out);
+        self.last_command = Some(command);
+        command
+    }
+
+    fn run_period(
         &mut self,
         sample: &SensorSample,
         out: &mut Vec<Message, MAX_TICK_MESSAGES>,
@@ -1239,6 +1274,7 @@ impl PickController {
             frames_paired: self.counters.frames_paired,
             frames_unpaired: self.counters.frames_unpaired,
             saturated_ticks: self.counters.saturated_ticks,
+            frames_rejected: self.link_frames_rejected,
         };
         // The outbox holds MAX_TICK_MESSAGES; telemetry is dropped, never the command.
         let _ = out.push(Message::Telemetry(telemetry));
