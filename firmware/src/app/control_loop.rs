@@ -23,7 +23,7 @@ use shared::protocol::{FaultCause, GripperCommand, Message, PickPhase, SensorSam
 
 use super::channels::{CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, SAMPLES, TRIGGERS, WORK};
 use super::stats;
-use crate::board::{active, ControlSource, CycleCounter, PlantIo};
+use crate::board::{active, ControlSource, CycleCounter, PlantIo, Watchdog};
 
 /// Control-loop rate: the plant model and the gains assume a 1 ms period.
 pub const CONTROL_RATE_HZ: u32 = 1_000;
@@ -101,7 +101,12 @@ async fn next_sample(
 }
 
 #[embassy_executor::task]
-pub async fn control_loop(mut plant: active::Plant, cycles: active::Cycles, source: ControlSource) {
+pub async fn control_loop(
+    mut plant: active::Plant,
+    mut watchdog: active::Watchdog,
+    cycles: active::Cycles,
+    source: ControlSource,
+) {
     plant.disable();
     let mut pick: Option<(u32, PickController)> = None;
     let mut reported_estimate = 0u32;
@@ -111,6 +116,8 @@ pub async fn control_loop(mut plant: active::Plant, cycles: active::Cycles, sour
     let budget = active::CPU_HZ / CONTROL_RATE_HZ;
     loop {
         let sample = next_sample(source, &mut ticker, &mut plant).await;
+        // Every period, configured or not; the first one arms it.
+        watchdog.feed();
         if let Some(configured) = CONTROL_CONFIG.try_take() {
             match PickController::new(
                 &configured.config,

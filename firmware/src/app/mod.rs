@@ -38,7 +38,12 @@ pub fn start(thread_spawner: Spawner, board: ActiveBoard) {
     ) else {
         defmt::panic!("interrupt executors started twice");
     };
-    match control_loop::control_loop(board.plant, board.cycles, board.control_source) {
+    match control_loop::control_loop(
+        board.plant,
+        board.watchdog,
+        board.cycles,
+        board.control_source,
+    ) {
         Ok(token) => control.spawn(token),
         Err(_) => defmt::panic!("cannot spawn the control loop"),
     }

@@ -9,6 +9,8 @@
 //!   gripper and camera trigger out), and where control periods come from
 //!   ([`ControlSource`]);
 //! - a [`CycleCounter`] to measure the control cycle;
+//! - a hardware [`Watchdog`] that the control loop feeds once per period (the
+//!   STM32's IWDG; a documented no-op on the emulated board);
 //! - constants: `CPU_HZ` (the nominal clock a control period's budget is
 //!   counted against) and `CONTROL_IRQ` / `LINK_IRQ` (two spare NVIC lines for
 //!   the interrupt executors; the board's handlers for them call
@@ -154,6 +156,36 @@ pub trait CycleCounter: Copy {
     }
 }
 
+/// A hardware watchdog that resets the board when the control loop stops
+/// running periods (a hung or crashed firmware: a fault handler's loop, a
+/// higher-priority interrupt that never returns, a stopped time driver), so
+/// that the reset takes the drives off.
+///
+/// The control loop calls [`feed`](Watchdog::feed) once per period, as soon
+/// as the period's sample is in and before anything that can skip the rest of
+/// the period. The first call arms it: no board arms it at boot. Once armed it
+/// cannot be disarmed (the STM32's IWDG stops only at reset), so every later
+/// period must feed it within the board's timeout. In ticker mode periods run
+/// from the first tick whether or not the host has configured anything (an
+/// unconfigured period disables the drives and goes on), so the watchdog is
+/// armed about a millisecond after boot and an idle board waiting for its link
+/// keeps feeding it: it is not reset for having no host. In lock step a
+/// period is a sample from the host, so the first sample would arm it (the
+/// emulated board's watchdog is a no-op, see `board::qemu`).
+///
+/// A trait of its own, not a method of [`PlantIo`]: it watches the firmware's
+/// liveness, not a plant signal, and the two boards answer it differently
+/// (the emulated board's plant is the simulator behind the link, which has
+/// its own drive watchdog in simulated time). Like the plant it is moved into
+/// the control loop's task, so nothing else can feed it and keep a stalled
+/// loop's watchdog quiet; the other tasks are watched by the control loop
+/// (the link timeout, the pick's job results).
+pub trait Watchdog {
+    /// Arms the watchdog on the first call; restarts its countdown on every
+    /// call.
+    fn feed(&mut self);
+}
+
 /// Checks a torque set before any output is touched.
 pub fn validate_torques(torque_nm: &[f32; JOINTS]) -> Result<(), BoardError> {
     for (joint, &tau) in torque_nm.iter().enumerate() {
@@ -165,14 +197,16 @@ pub fn validate_torques(torque_nm: &[f32; JOINTS]) -> Result<(), BoardError> {
 }
 
 /// The board's devices, handed to the application once at boot.
-pub struct Board<S: SerialLink, P: PlantIo, C: CycleCounter> {
+pub struct Board<S: SerialLink, P: PlantIo, C: CycleCounter, W: Watchdog> {
     /// Reported to the host in `HelloAck`.
     pub name: &'static str,
     pub serial: S,
     pub plant: P,
     pub cycles: C,
+    /// Not armed yet: the control loop's first period arms it.
+    pub watchdog: W,
     pub control_source: ControlSource,
 }
 
 /// The selected board's concrete devices.
-pub type ActiveBoard = Board<active::Serial, active::Plant, active::Cycles>;
+pub type ActiveBoard = Board<active::Serial, active::Plant, active::Cycles, active::Watchdog>;

@@ -4,7 +4,7 @@
 //! semihosting. There are no motors: the simulator is the plant, in lock step
 //! through the protocol (sensor samples in, actuator commands out). TIMER0
 //! counts instructions under `-icount`; NVIC lines 28 and 29 run the interrupt
-//! executors.
+//! executors. The board's watchdog is a no-op ([`NoWatchdog`]).
 
 mod mmio;
 mod sim_io;
@@ -16,12 +16,13 @@ use defmt_semihosting as _;
 pub use sim_io::{InstructionCounter, LockStepPlant};
 pub use uart::Uart0;
 
-use super::{Board, ControlSource};
+use super::{Board, ControlSource, Watchdog as WatchdogFeed};
 use crate::executor::{on_interrupt, Level};
 
 pub type Serial = Uart0;
 pub type Plant = LockStepPlant;
 pub type Cycles = InstructionCounter;
+pub type Watchdog = NoWatchdog;
 
 /// Name reported in `HelloAck`.
 pub const BOARD_NAME: &str = "mps2-an386";
@@ -37,15 +38,41 @@ pub const CONTROL_IRQ: u16 = 28;
 pub const LINK_IRQ: u16 = 29;
 
 /// Brings up the timebase and UART0. Call once, first thing in `main`.
-pub fn init() -> Result<Board<Serial, Plant, Cycles>, InitError> {
+pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
     time_driver::init();
     Ok(Board {
         name: BOARD_NAME,
         serial: Uart0::init(),
         plant: LockStepPlant::take(),
         cycles: InstructionCounter::start(),
+        watchdog: NoWatchdog { _owned: () },
         control_source: ControlSource::LockStep,
     })
+}
+
+/// The emulated board's watchdog: feeding it does nothing, on purpose.
+///
+/// QEMU's mps2-an386 does model the CMSDK APB watchdog (at 0x4000_8000,
+/// clocked at 25 MHz, its interrupt on the NMI; the second expiry with RESEN
+/// set resets the machine, QEMU's default `-watchdog-action`), so it could be
+/// fed here. But in lock step a control period is a sample from the host, and
+/// the watchdog counts QEMU's virtual clock, which runs on while the CPU
+/// sleeps waiting for that sample (at the host's pace, with or without
+/// `-icount`; with `-icount sleep=off` it would jump straight to the
+/// watchdog's deadline). Fed once per period it would time the host's pauses,
+/// not the firmware: the host thinking, a session ending, or no host at all
+/// until the next session would reset the board, and a timeout long enough
+/// never to fire then (between sessions the wait is unbounded) would never
+/// fire. A
+/// firmware that hangs in lock step is already seen where it matters: the
+/// simulator gets no actuator command, and its drives' own watchdog brakes
+/// the arm (5 ms, in simulated time).
+pub struct NoWatchdog {
+    _owned: (),
+}
+
+impl WatchdogFeed for NoWatchdog {
+    fn feed(&mut self) {}
 }
 
 /// Bringing up the emulated board cannot fail.

@@ -16,7 +16,9 @@
 //!   TIM11, TIM13, TIM14 CH1, direction lines PE7/8/10/12/13/14, enable PE15
 //!   ([`servo`], [`sign_magnitude`]);
 //! - gripper PD0, camera trigger PD1, part-present switch PD4 ([`plant`]);
-//! - cycle counter: the DWT's CYCCNT ([`cycles`]).
+//! - cycle counter: the DWT's CYCCNT ([`cycles`]);
+//! - the independent watchdog (IWDG), armed by the control loop's first
+//!   period, 32 ms nominal ([`watchdog`]); `init` logs a reset it caused.
 //!
 //! The plant runs from the board's own ticker ([`ControlSource::Ticker`]).
 
@@ -28,6 +30,7 @@ mod plant;
 mod quadrature;
 mod servo;
 mod sign_magnitude;
+mod watchdog;
 
 use defmt_rtt as _;
 use embassy_stm32::gpio::{Input, Level, Output, Pull, Speed};
@@ -43,6 +46,7 @@ use encoders::{qei_config, EncoderPeripherals};
 use plant::PlantDevices;
 pub use plant::Stm32Plant;
 use servo::{ServoAmplifiers, ServoPeripherals};
+pub use watchdog::IndependentWatchdogFeed;
 
 use super::{Board, ControlSource};
 
@@ -55,6 +59,7 @@ bind_interrupts!(struct Irqs {
 pub type Serial = BufferedUart<'static>;
 pub type Plant = Stm32Plant;
 pub type Cycles = DwtCycles;
+pub type Watchdog = IndependentWatchdogFeed;
 
 /// Name reported in `HelloAck`.
 pub const BOARD_NAME: &str = "stm32f407";
@@ -116,9 +121,16 @@ impl core::fmt::Display for InitError {
 }
 
 /// Brings up the clock tree, the time driver, USART2 and the plant I/O with
-/// every amplifier disabled. Call once, first in `main`.
-pub fn init() -> Result<Board<Serial, Plant, Cycles>, InitError> {
+/// every amplifier disabled, and sets up the IWDG without starting it. Call
+/// once, first in `main`.
+pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
+    let reset_by_watchdog = watchdog::take_iwdg_reset_flag();
     let p = embassy_stm32::init(clock::config());
+    if reset_by_watchdog {
+        defmt::warn!(
+            "last reset by the independent watchdog: the control loop had stopped, the drives went off"
+        );
+    }
     let sys_hz = embassy_stm32::rcc::clocks(&p.RCC)
         .sys
         .to_hertz()
@@ -190,6 +202,7 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles>, InitError> {
         serial,
         plant,
         cycles,
+        watchdog: IndependentWatchdogFeed::new(p.IWDG),
         control_source: ControlSource::Ticker,
     })
 }
