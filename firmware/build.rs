@@ -1,4 +1,7 @@
-//! Selects the board's memory map and linker scripts.
+//! Selects the board's memory map and linker scripts, and the control rate.
+//!
+//! The control loop's rate is a build setting: `FIRMWARE_CONTROL_RATE_HZ`
+//! (100 to 10,000 Hz, 1,000 when unset), written into `OUT_DIR/control_rate.rs`.
 //!
 //! The top-level `memory.x` only says `INCLUDE board-memory.x`; this script
 //! writes the selected board's map under that name into `OUT_DIR` and puts
@@ -6,7 +9,47 @@
 
 use std::{env, fs, path::PathBuf};
 
+/// The control rate's bounds: the pick's timing (observer, speed window,
+/// stall limit) is in seconds and was run from 1 to 10 kHz in the simulator.
+const CONTROL_RATE_RANGE_HZ: std::ops::RangeInclusive<u32> = 100..=10_000;
+
+/// `FIRMWARE_CONTROL_RATE_HZ` checked, or the reason it is refused.
+fn control_rate_hz() -> Result<u32, String> {
+    let Some(text) = env::var_os("FIRMWARE_CONTROL_RATE_HZ") else {
+        return Ok(1_000);
+    };
+    let text = text.to_string_lossy();
+    let rate: u32 = text.trim().parse().map_err(|e| {
+        format!("FIRMWARE_CONTROL_RATE_HZ={text:?} is not a whole number of hertz: {e}")
+    })?;
+    if !CONTROL_RATE_RANGE_HZ.contains(&rate) {
+        return Err(format!(
+            "FIRMWARE_CONTROL_RATE_HZ={rate} is outside {} to {} Hz",
+            CONTROL_RATE_RANGE_HZ.start(),
+            CONTROL_RATE_RANGE_HZ.end()
+        ));
+    }
+    Ok(rate)
+}
+
 fn main() {
+    println!("cargo:rerun-if-env-changed=FIRMWARE_CONTROL_RATE_HZ");
+    let rate = match control_rate_hz() {
+        Ok(rate) => rate,
+        Err(e) => {
+            println!("cargo:warning={e}");
+            std::process::exit(1);
+        }
+    };
+    let out_dir = PathBuf::from(env::var_os("OUT_DIR").unwrap_or_default());
+    let source = format!(
+        "/// Control-loop rate, Hz (`FIRMWARE_CONTROL_RATE_HZ` at build time).\npub const CONTROL_RATE_HZ: u32 = {rate};\n"
+    );
+    if let Err(e) = fs::write(out_dir.join("control_rate.rs"), source) {
+        println!("cargo:warning=cannot write control_rate.rs into OUT_DIR: {e}");
+        std::process::exit(1);
+    }
+
     let qemu = env::var_os("CARGO_FEATURE_BOARD_QEMU").is_some();
     let stm32 = env::var_os("CARGO_FEATURE_BOARD_STM32F407").is_some();
     let board_dir = match (qemu, stm32) {
@@ -26,7 +69,6 @@ fn main() {
     };
 
     let manifest_dir = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").unwrap_or_default());
-    let out_dir = PathBuf::from(env::var_os("OUT_DIR").unwrap_or_default());
     let map = manifest_dir
         .join("src/board")
         .join(board_dir)

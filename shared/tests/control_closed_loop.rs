@@ -417,3 +417,32 @@ fn a_step_with_precomputed_kinematics_is_the_same_step() {
         assert_eq!(a, b, "period {k}");
     }
 }
+
+/// A frozen integral keeps its value (and its torque) while the error stays;
+/// released, it integrates again.
+#[test]
+fn a_frozen_integral_keeps_what_it_learnt() {
+    let model = controller_model(1.0);
+    let circle = task_circle();
+    let mut reference = cast_reference(&circle.reference(0.0));
+    let (q0, qd0) = start_on(&Puma560::<f64>::new(), &circle.reference(0.0));
+    let (q, qd) = (q0.cast::<f32>(), qd0.cast::<f32>());
+    // A reference 2 mm off the arm: a steady position error to integrate.
+    reference.base_from_flange.translation.vector.x += 0.002;
+    let mut controller = TaskSpaceController::new(controller_config(true)).unwrap();
+    for _ in 0..100 {
+        controller.step(&model, &q, &qd, &reference, 1e-3);
+    }
+    let learnt = *controller.error_integral();
+    assert!(learnt.x.abs() > 1e-4, "{learnt:?}");
+    controller.freeze_integral(true);
+    let first = controller.step(&model, &q, &qd, &reference, 1e-3);
+    for _ in 0..100 {
+        let out = controller.step(&model, &q, &qd, &reference, 1e-3);
+        assert_eq!(out.tau, first.tau);
+    }
+    assert_eq!(*controller.error_integral(), learnt);
+    controller.freeze_integral(false);
+    controller.step(&model, &q, &qd, &reference, 1e-3);
+    assert!(controller.error_integral().x.abs() > learnt.x.abs());
+}

@@ -25,8 +25,12 @@ use super::channels::{CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, SAMPLES, TRIGG
 use super::stats;
 use crate::board::{active, ControlSource, CycleCounter, PlantIo, Watchdog};
 
-/// Control-loop rate: the plant model and the gains assume a 1 ms period.
-pub const CONTROL_RATE_HZ: u32 = 1_000;
+// `CONTROL_RATE_HZ`: the ticker's rate on a real board, the period a
+// deadline is counted against, and the rate `HelloAck` reports. Set at build
+// time with `FIRMWARE_CONTROL_RATE_HZ` (100 to 10,000 Hz, default 1,000; see
+// build.rs). The pick's timing is in seconds, taken from the samples' time
+// stamps, so in lock step the plant's rate is the host's.
+include!(concat!(env!("OUT_DIR"), "/control_rate.rs"));
 
 /// Ticker mode: the arm stops when no valid frame came from the vision
 /// computer for this long.

@@ -8,6 +8,7 @@
 //! bounded rate, telemetry and calibration reports); the world applies the
 //! command for one period.
 
+use std::collections::VecDeque;
 use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context, Result};
@@ -32,6 +33,10 @@ const SETTLE_AFTER_END_S: f64 = 0.5;
 /// line loses frames both ways; the in-process link answers at once, so there
 /// a lost reply is known at once and this wait is never spent.
 const RESEND_AFTER: Duration = Duration::from_millis(1_000);
+
+/// The wait for a command once a refused frame was seen (the controller
+/// reported one, or a reply came damaged): a round trip on a board's link.
+const RESEND_AFTER_DAMAGE: Duration = Duration::from_millis(100);
 
 /// Sends of one request (a sample, the handshake, the configuration) before
 /// the run gives up on the link: at [`RESEND_AFTER`] apart, 10 s in all (a
@@ -111,6 +116,18 @@ fn request<L: ByteLink, T>(
         "no {expecting} from {} after {MAX_SENDS} sends",
         link.describe()
     )
+}
+
+/// Periods of truth kept to pair a telemetry message with its own instant.
+const RECENT_TRUTHS: usize = 64;
+
+/// The truth at the sample time `time_us`, or `now` if it is no longer kept.
+fn truth_at(recent: &VecDeque<(u64, WorldTruth)>, time_us: u64, now: &WorldTruth) -> WorldTruth {
+    recent
+        .iter()
+        .rev()
+        .find(|(t, _)| *t == time_us)
+        .map_or(*now, |(_, truth)| *truth)
 }
 
 /// Opens the session and sends the cell configuration.
@@ -216,7 +233,9 @@ pub fn run_pick<L: ByteLink>(
     let disc_centre = world.layout().disc_centre_base_m;
     let disc_top = disc_centre[2];
     let disc_radius = world.layout().disc_radius_m;
-    let mut latest_estimate: Option<([f64; 3], f64)> = None;
+    // The part's last estimate (position, yaw) and the truth at its instant.
+    let mut latest_estimate: Option<([f64; 3], f64, WorldTruth)> = None;
+    let mut recent_truths: VecDeque<(u64, WorldTruth)> = VecDeque::with_capacity(RECENT_TRUTHS);
 
     loop {
         let now = world.time_s();
@@ -243,19 +262,34 @@ pub fn run_pick<L: ByteLink>(
         }
         let sample = world.sensor_sample();
         let truth = world.truth();
+        if recent_truths.len() >= RECENT_TRUTHS {
+            recent_truths.pop_front();
+        }
+        recent_truths.push_back((sample.time_us, truth));
         let command = 'exchange: {
             for send in 0..MAX_SENDS {
                 if send > 0 {
                     tally.record.samples_resent += 1;
                 }
                 link.send(&Message::SensorSample(sample))?;
+                // A refused frame either way may have been this sample or its
+                // command: then wait only briefly for the command before
+                // sending the sample again.
+                let mut damage_seen = false;
                 loop {
-                    let reply = match link.recv(RESEND_AFTER, "ActuatorCommand") {
+                    let wait = if damage_seen {
+                        RESEND_AFTER_DAMAGE
+                    } else {
+                        RESEND_AFTER
+                    };
+                    let reply = match link.recv(wait, "ActuatorCommand") {
                         Ok(reply) => reply,
                         Err(e) => {
+                            let refused = matches!(e, LinkError::CorruptReply(_));
                             if tally.on_recv_error(e)? {
                                 break;
                             }
+                            damage_seen |= refused;
                             continue;
                         }
                     };
@@ -269,6 +303,9 @@ pub fn run_pick<L: ByteLink>(
                         }
                         Message::Telemetry(telemetry) => {
                             tally.on_telemetry(&telemetry);
+                            // The truth at the telemetry's own instant (it comes
+                            // after its period's command, a period or more late).
+                            let truth = truth_at(&recent_truths, telemetry.time_us, &truth);
                             if last_phase != Some(telemetry.phase) {
                                 last_phase = Some(telemetry.phase);
                                 phases.push(PhaseEvent {
@@ -284,12 +321,13 @@ pub fn run_pick<L: ByteLink>(
                             {
                                 ended_at = Some(truth.time_s);
                             }
-                            latest_estimate = telemetry
-                                .part_base_m
-                                .map(|p| (to_f64(p), f64::from(telemetry.part_yaw_base_rad)));
+                            latest_estimate = telemetry.part_base_m.map(|p| {
+                                (to_f64(p), f64::from(telemetry.part_yaw_base_rad), truth)
+                            });
                             records.push(tick_record(&telemetry, &truth));
                         }
                         Message::CalibrationReport(report) => {
+                            let truth = truth_at(&recent_truths, report.time_us, &truth);
                             let workcell = world.workcell();
                             calibrations.push(CalibrationRecord {
                                 t_s: truth.time_s,
@@ -313,6 +351,7 @@ pub fn run_pick<L: ByteLink>(
                         Message::Ack { .. } => {}
                         Message::ErrorReport { code, .. } if is_refusal(code) => {
                             tally.record.refusals_reported += 1;
+                            damage_seen = true;
                         }
                         Message::ErrorReport { code, detail } => {
                             bail!("the controller reported {code:?} ({detail}) at t = {now:.3} s")
@@ -342,12 +381,11 @@ pub fn run_pick<L: ByteLink>(
                 position_error_m: attempt.position_error_base_m,
                 yaw_error_rad: attempt.yaw_error_rad,
                 relative_speed_m_s: attempt.relative_speed_m_s,
-                estimate_error_m: estimate.map(|(p, _)| vector_sub(p, truth.part_base_m)),
-                estimate_yaw_error_rad: estimate.map(|(_, yaw)| {
-                    angle_distance(yaw, truth.part_yaw_rad).min(angle_distance(
-                        yaw + std::f64::consts::PI,
-                        truth.part_yaw_rad,
-                    ))
+                // The last estimate against the truth at its own instant.
+                estimate_error_m: estimate.map(|(p, _, at)| vector_sub(p, at.part_base_m)),
+                estimate_yaw_error_rad: estimate.map(|(_, yaw, at)| {
+                    angle_distance(yaw, at.part_yaw_rad)
+                        .min(angle_distance(yaw + std::f64::consts::PI, at.part_yaw_rad))
                 }),
             });
         }

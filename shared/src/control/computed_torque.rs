@@ -111,6 +111,7 @@ pub struct TaskSpaceController<T: RealField + Copy> {
     config: ControllerConfig<T>,
     error_integral: Vector6<T>,
     last_finite_q: Option<Joints<T>>,
+    integral_frozen: bool,
 }
 
 fn all_finite<T: RealField + Copy, const N: usize>(v: &nalgebra::SVector<T, N>) -> bool {
@@ -129,6 +130,7 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
             config,
             error_integral: Vector6::zeros(),
             last_finite_q: None,
+            integral_frozen: false,
         })
     }
 
@@ -145,6 +147,15 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
     /// Clears the integral state (e.g. when a new trajectory starts).
     pub fn reset(&mut self) {
         self.error_integral = Vector6::zeros();
+    }
+
+    /// Keeps the integral where it is (`true`) or integrates again. Holding a
+    /// pose still against Coulomb friction, a live integral winds up in the
+    /// joints' dead band until they break away and slip (stick-slip hunting);
+    /// frozen, it keeps compensating the model error it has learnt (payload,
+    /// masses) and the hold settles.
+    pub fn freeze_integral(&mut self, frozen: bool) {
+        self.integral_frozen = frozen;
     }
 
     /// One control step: never returns NaN torques.
@@ -282,7 +293,7 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
     /// The integral after this step, clamped per component (anti-windup).
     fn integrate(&self, error: &Vector6<T>, dt: T) -> Vector6<T> {
         let (gp, go) = (&self.config.gains.position, &self.config.gains.orientation);
-        if gp.ki == T::zero() && go.ki == T::zero() {
+        if self.integral_frozen || (gp.ki == T::zero() && go.ki == T::zero()) {
             return self.error_integral;
         }
         let (lp, lo) = (

@@ -249,6 +249,8 @@ pub struct PickController {
     speed_window: JointSpeedWindow,
     /// Engaged when the task-space stop cannot be trusted; then for good.
     brake: Option<JointBrake>,
+    /// When Eq 23's integral was last cleared (a stall).
+    integral_reset_s: f32,
     /// The last period's command: the answer to a sample sent again because
     /// the host lost its command on a noisy link (lock step).
     last_command: Option<ActuatorCommand>,
@@ -377,6 +379,7 @@ impl PickController {
             part_in_gripper: false,
             speed_window: JointSpeedWindow::new(),
             brake: None,
+            integral_reset_s: 0.0,
             last_command: None,
             link_frames_rejected: 0,
         })
@@ -640,6 +643,13 @@ impl PickController {
             acceleration: self.reference.acceleration6(),
         };
         let dt = if dt_s > 0.0 { dt_s } else { 1e-3 };
+        // Holding after a stop: once the integral has settled the stop's
+        // residual, keep it, so the hold does not hunt in the joints'
+        // friction (stick-slip).
+        let settled_since = self.step_started_s.max(self.integral_reset_s);
+        self.controller.freeze_integral(
+            self.step == Step::Faulted && self.now_s - settled_since > self.settings.hold_settle_s,
+        );
         let output = self.controller.step_with(
             &self.model,
             q,
@@ -747,6 +757,7 @@ impl PickController {
         self.counters.stalls = self.counters.stalls.saturating_add(1);
         self.reference = TaskState::at_rest(flange.translation.vector, self.tool_yaw_measured);
         self.controller.reset();
+        self.integral_reset_s = self.now_s;
         match self.step {
             Step::Start | Step::Done | Step::Faulted => self.hold_here(),
             Step::Stopping => self.enter(Step::Faulted),

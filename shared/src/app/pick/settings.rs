@@ -59,6 +59,9 @@ pub struct PickSettings {
     /// Longest gap between two control periods before the pick stops
     /// (ControlStall): a motion planned before the gap is not carried on.
     pub stall_limit_s: f32,
+    /// Holding after a stop: Eq 23's integral runs this long into the hold,
+    /// then is frozen (a live integral hunts in the joints' friction).
+    pub hold_settle_s: f32,
     /// A final calibration whose reprojection RMS exceeds this does not fit one
     /// camera pose (the camera moved while the marks were shown): refused.
     pub max_rms_reprojection_px: f32,
@@ -134,6 +137,7 @@ impl Default for PickSettings {
             vision_stale_s: 2.0,
             tracking_error_limit_m: 0.03,
             stall_limit_s: 0.02,
+            hold_settle_s: 0.3,
             max_rms_reprojection_px: 2.0,
             max_rejected_fraction: 0.08,
             view_residual_px: 6.0,
