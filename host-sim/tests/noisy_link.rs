@@ -12,11 +12,7 @@ use host_sim::pick::scenario::{PickExperiment, PickScenarioFile};
 use rayon::prelude::*;
 
 fn experiment(name: &str) -> PickExperiment {
-    PickScenarioFile::embedded_default()
-        .unwrap()
-        .experiment(name)
-        .unwrap()
-        .clone()
+    PickScenarioFile::default_experiment(name).unwrap()
 }
 
 #[test]

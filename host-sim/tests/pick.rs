@@ -9,11 +9,7 @@ use host_sim::pick::scenario::{PickExperiment, PickScenarioFile};
 use shared::protocol::{FaultCause, PickPhase};
 
 fn experiment(name: &str) -> PickExperiment {
-    PickScenarioFile::embedded_default()
-        .unwrap()
-        .experiment(name)
-        .unwrap()
-        .clone()
+    PickScenarioFile::default_experiment(name).unwrap()
 }
 
 fn norm(v: [f64; 3]) -> f64 {

@@ -9,8 +9,8 @@ use std::time::{Duration, Instant};
 
 use heapless::{String as HString, Vec as HVec};
 use shared::protocol::{
-    ActuatorCommand, CameraFeatureFrame, ControllerStatus, ErrorCode, GripperCommand, LabeledPoint,
-    Message, MessageKind, PointLabel, RuntimeReport, SensorSample, JOINTS, MAX_FEATURE_POINTS,
+    ActuatorCommand, CameraFeatureFrame, ControllerStatus, GripperCommand, LabeledPoint, Message,
+    MessageKind, PointLabel, RuntimeReport, SensorSample, JOINTS, MAX_FEATURE_POINTS,
     MAX_FRAME_LEN, PROTOCOL_VERSION,
 };
 
@@ -496,13 +496,7 @@ fn check_reply(index: u64, expected: &Expected, got: &Message) -> Result<(), Che
         ) => kind == k && token == t && counter == c,
         (Expected::Status, Message::Status(_)) => true,
         (Expected::Rejection { detail }, Message::ErrorReport { code, detail: d }) => {
-            matches!(
-                code,
-                ErrorCode::CorruptFrame
-                    | ErrorCode::BadCrc
-                    | ErrorCode::OversizedFrame
-                    | ErrorCode::BadMessage
-            ) && detail == d
+            code.is_frame_refusal() && detail == d
         }
         _ => false,
     };

@@ -13,8 +13,7 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context, Result};
 use shared::protocol::{
-    ControllerMode, ErrorCode, FaultCause, Message, MessageKind, PickPhase, PickTelemetry,
-    PROTOCOL_VERSION,
+    ControllerMode, FaultCause, Message, MessageKind, PickPhase, PickTelemetry, PROTOCOL_VERSION,
 };
 
 use super::record::{
@@ -42,18 +41,6 @@ const RESEND_AFTER_DAMAGE: Duration = Duration::from_millis(100);
 /// the run gives up on the link: at [`RESEND_AFTER`] apart, 10 s in all (a
 /// real board or an emulator may be slow to answer).
 const MAX_SENDS: u32 = 10;
-
-/// An error report that says the controller refused a damaged frame (the
-/// frame is lost; the sender finds out by the missing reply).
-fn is_refusal(code: ErrorCode) -> bool {
-    matches!(
-        code,
-        ErrorCode::CorruptFrame
-            | ErrorCode::BadCrc
-            | ErrorCode::OversizedFrame
-            | ErrorCode::BadMessage
-    )
-}
 
 /// What the runner saw of the link, counted into the run's [`LinkRecord`].
 #[derive(Default)]
@@ -96,7 +83,7 @@ fn request<L: ByteLink, T>(
         link.send(request)?;
         loop {
             match link.recv(RESEND_AFTER, expecting) {
-                Ok(Message::ErrorReport { code, .. }) if is_refusal(code) => {
+                Ok(Message::ErrorReport { code, .. }) if code.is_frame_refusal() => {
                     tally.record.refusals_reported += 1;
                 }
                 Ok(message) => {
@@ -349,7 +336,7 @@ pub fn run_pick<L: ByteLink>(
                              its application does not run the pick (firmware older than the pick application?)"
                         ),
                         Message::Ack { .. } => {}
-                        Message::ErrorReport { code, .. } if is_refusal(code) => {
+                        Message::ErrorReport { code, .. } if code.is_frame_refusal() => {
                             tally.record.refusals_reported += 1;
                             damage_seen = true;
                         }
@@ -408,7 +395,7 @@ pub fn run_pick<L: ByteLink>(
         loop {
             match link.recv(Duration::from_millis(1), "the last replies") {
                 Ok(Message::Telemetry(telemetry)) => tally.on_telemetry(&telemetry),
-                Ok(Message::ErrorReport { code, .. }) if is_refusal(code) => {
+                Ok(Message::ErrorReport { code, .. }) if code.is_frame_refusal() => {
                     tally.record.refusals_reported += 1;
                 }
                 Ok(_) => {}

@@ -270,9 +270,14 @@ pub struct GripperSettings {
 }
 
 impl PickScenarioFile {
-    /// The scenario file built into the binary (four experiments).
+    /// The scenario file built into the binary (five experiments).
     pub fn embedded_default() -> Result<Self> {
         Self::parse(DEFAULT_SCENARIO_TOML).context("the embedded default scenario file")
+    }
+
+    /// One experiment of the embedded default file, by name.
+    pub fn default_experiment(name: &str) -> Result<PickExperiment> {
+        Self::embedded_default()?.experiment(name).cloned()
     }
 
     /// Reads and validates a scenario file.
@@ -587,7 +592,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_embedded_default_has_the_four_experiments() {
+    fn the_embedded_default_has_the_five_experiments() {
         let file = PickScenarioFile::embedded_default().unwrap();
         let names: Vec<&str> = file.experiment.iter().map(|e| e.name.as_str()).collect();
         assert_eq!(
@@ -596,7 +601,8 @@ mod tests {
                 "experiment-1",
                 "experiment-2-4cm",
                 "experiment-2-7cm",
-                "turning"
+                "turning",
+                "turning-height-known"
             ]
         );
         let exp1 = file.experiment("experiment-1").unwrap();
@@ -660,7 +666,7 @@ mod tests {
         std::fs::write(&path, DEFAULT_SCENARIO_TOML).unwrap();
         assert_eq!(
             PickScenarioFile::from_path(&path).unwrap().experiment.len(),
-            4
+            5
         );
         std::fs::write(&path, "experiment = []\n").unwrap();
         let err = format!("{:#}", PickScenarioFile::from_path(&path).unwrap_err());

@@ -742,11 +742,7 @@ mod tests {
     use shared::planning::{gripper_down_rotation, solve_ik, IkConfig};
 
     fn experiment(name: &str) -> PickExperiment {
-        PickScenarioFile::embedded_default()
-            .unwrap()
-            .experiment(name)
-            .unwrap()
-            .clone()
+        PickScenarioFile::default_experiment(name).unwrap()
     }
 
     /// A quick stop: the part is in front of the robot within a few seconds.

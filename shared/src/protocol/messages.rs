@@ -136,6 +136,20 @@ pub enum ErrorCode {
     BadConfiguration,
 }
 
+impl ErrorCode {
+    /// The receiver refused a damaged frame (the frame is lost; its sender
+    /// learns it from this report or from the reply that never comes).
+    pub fn is_frame_refusal(self) -> bool {
+        matches!(
+            self,
+            ErrorCode::CorruptFrame
+                | ErrorCode::BadCrc
+                | ErrorCode::OversizedFrame
+                | ErrorCode::BadMessage
+        )
+    }
+}
+
 /// Every message of protocol v1.
 ///
 /// Camera frames make this enum large (~330 bytes); there is no heap to box them
