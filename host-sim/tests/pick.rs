@@ -3,7 +3,7 @@
 //! scenario and on injected faults.
 
 use host_sim::pick::montecarlo::{run_trials, TrialSummary};
-use host_sim::pick::record::{PickResult, PickRun};
+use host_sim::pick::record::{LinkRecord, PickResult, PickRun};
 use host_sim::pick::runner::run_pick_in_process;
 use host_sim::pick::scenario::{PickExperiment, PickScenarioFile};
 use shared::protocol::{FaultCause, PickPhase};
@@ -45,6 +45,8 @@ fn the_paper_experiments_and_the_moving_pick_succeed() {
     ] {
         let run = run_pick_in_process(&experiment(name), 1).unwrap();
         assert_eq!(run.result, PickResult::Success, "{name}");
+        // A clean link: nothing sent twice, refused or stale.
+        assert_eq!(run.link, LinkRecord::default(), "{name}");
         assert_safe(&run);
         let grasp = run.grasp.unwrap();
         let estimate_error = norm(grasp.estimate_error_m.unwrap());

@@ -27,7 +27,7 @@ use crate::board::{active, ControlSource, CycleCounter, PlantIo, Watchdog};
 
 // `CONTROL_RATE_HZ`: the ticker's rate on a real board, the period a
 // deadline is counted against, and the rate `HelloAck` reports. Set at build
-// time with `FIRMWARE_CONTROL_RATE_HZ` (100 to 10,000 Hz, default 1,000; see
+// time with `FIRMWARE_CONTROL_RATE_HZ` (1,000 to 10,000 Hz, default 1,000; see
 // build.rs). The pick's timing is in seconds, taken from the samples' time
 // stamps, so in lock step the plant's rate is the host's.
 include!(concat!(env!("OUT_DIR"), "/control_rate.rs"));
@@ -162,6 +162,9 @@ pub async fn control_loop(
         }
         let mut extra: Vec<Message, MAX_TICK_MESSAGES> = Vec::new();
         controller.set_link_frames_rejected(stats::FRAMES_REJECTED.load(Ordering::Relaxed));
+        // A sample sent again (its command was lost) gets the same command and
+        // runs no period: not a control period in the figures either.
+        let repeated = controller.repeats(&sample);
         let command = controller.on_sensor_sample(&sample, &mut extra);
         hand_on_events(controller, *session);
         match source {
@@ -198,6 +201,8 @@ pub async fn control_loop(
             .now()
             .wrapping_sub(started)
             .saturating_mul(cycles.scale());
-        stats::record_control(cost, cost > budget, controller.counters().late_results);
+        if !repeated {
+            stats::record_control(cost, cost > budget, controller.counters().late_results);
+        }
     }
 }

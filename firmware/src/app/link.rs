@@ -36,6 +36,8 @@ struct Session {
     /// The pick's frame pairer and session number, once configured.
     pairer: Option<(u32, FramePairer)>,
     sessions: u32,
+    /// (seq, time) of the last sample handed to the control loop.
+    last_sample: Option<(u32, u64)>,
 }
 
 impl Session {
@@ -67,8 +69,18 @@ impl Session {
                 if open && self.pairer.is_some() && self.source == ControlSource::LockStep =>
             {
                 self.responder.count_received();
-                if SAMPLES.try_send(*sample).is_err() {
-                    stats::count_dropped_handoff();
+                // A copy of the sample still queued (the host sent it again
+                // while the control loop waited, e.g. for a job's result) is
+                // answered by the queued one's command: coalesce it. A copy of
+                // one already taken goes on: the control loop answers it with
+                // the same command, in case the first was lost.
+                let copy = self.last_sample == Some((sample.seq, sample.time_us));
+                let coalesced = copy && !SAMPLES.is_empty();
+                if !coalesced {
+                    if SAMPLES.try_send(*sample).is_err() {
+                        stats::count_dropped_handoff();
+                    }
+                    self.last_sample = Some((sample.seq, sample.time_us));
                 }
                 None
             }
@@ -141,6 +153,7 @@ pub async fn link_task(
         unit: cycles.cost_unit(),
         pairer: None,
         sessions: 0,
+        last_sample: None,
     };
     let mut chunk = [0u8; READ_CHUNK];
     defmt::info!("link up on {}", board_name);

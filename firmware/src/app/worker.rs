@@ -31,10 +31,10 @@ async fn tell_control(news: VisionNews) {
 }
 
 /// Replaces the worker for a new configuration. Out of line, so that the
-/// worker (its calibrator is 32 KiB) is built straight into its slot here
-/// instead of in temporaries that the task's frame would keep reserved under
-/// the bundle adjustment's (inlined, they took the deepest stack from 104 KB
-/// to 128 KB).
+/// temporaries the worker is built in (its calibrator is 32 KiB) live in this
+/// function's frame while it runs, not in the task's frame, which stays
+/// reserved under the bundle adjustment's (inlined, they took the deepest
+/// stack from 104 KB to 128 KB).
 #[inline(never)]
 fn build(slot: &mut Option<(u32, PickWorker)>, configured: &Configured) {
     *slot = None;

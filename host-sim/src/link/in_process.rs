@@ -13,7 +13,8 @@ use shared::protocol::{encode_frame, FrameDecoder, MAX_FRAME_LEN};
 
 use super::{ByteLink, LinkError};
 
-/// The control rate the in-process controller reports (the firmware's).
+/// The control rate the in-process controller reports (the firmware's default;
+/// in lock step the plant's rate is the scenario's).
 pub const IN_PROCESS_CONTROL_RATE_HZ: u32 = 1_000;
 
 pub struct InProcessLink {

@@ -1,7 +1,8 @@
 //! A noisy line between the host and the controller: every byte, in both
 //! directions, is flipped (one random bit), dropped, or followed by an extra
-//! random byte with a set probability, from a seeded generator, so a run is
-//! reproducible.
+//! random byte with a set probability, from a seeded generator per direction,
+//! so a run is reproducible and the damage to a byte stream does not depend
+//! on how the link chunks it (in process or over a socket).
 //!
 //! The link also checks itself. For each direction it runs two reference
 //! decoders (`shared::protocol::FrameDecoder`): one on the bytes as they were
@@ -77,11 +78,15 @@ pub struct NoiseCounts {
     pub telemetry: TelemetryCheck,
 }
 
+/// Mixed into the seed of the controller-to-host direction's generator.
+const TO_HOST_SEED_MIX: u64 = 0x9E37_79B9_7F4A_7C15;
+
 /// Sensor samples delivered to the controller remembered for the telemetry check.
 const REMEMBERED_SAMPLES: usize = 256;
 
 /// One direction: the damage and its check.
 struct Direction {
+    rng: ChaCha8Rng,
     clean: FrameDecoder,
     damaged: FrameDecoder,
     /// Messages decoded from the clean bytes that no accepted frame has
@@ -91,8 +96,9 @@ struct Direction {
 }
 
 impl Direction {
-    fn new() -> Self {
+    fn new(rng: ChaCha8Rng) -> Self {
         Direction {
+            rng,
             clean: FrameDecoder::new(),
             damaged: FrameDecoder::new(),
             pending: VecDeque::new(),
@@ -104,7 +110,6 @@ impl Direction {
     /// the messages as sent, and those delivered with the refusals before each.
     fn carry(
         &mut self,
-        rng: &mut ChaCha8Rng,
         rate: f64,
         bytes: &[u8],
         out: &mut Vec<u8>,
@@ -119,17 +124,17 @@ impl Direction {
                 self.pending.push_back(message.clone());
                 sent.push(message);
             }
-            if rate > 0.0 && rng.random::<f64>() < rate {
-                match rng.random_range(0..3u8) {
+            if rate > 0.0 && self.rng.random::<f64>() < rate {
+                match self.rng.random_range(0..3u8) {
                     0 => {
                         self.counts.flipped += 1;
-                        out.push(byte ^ (1u8 << rng.random_range(0..8u32)));
+                        out.push(byte ^ (1u8 << self.rng.random_range(0..8u32)));
                     }
                     1 => self.counts.dropped += 1,
                     _ => {
                         self.counts.inserted += 1;
                         out.push(byte);
-                        out.push(rng.random::<u8>());
+                        out.push(self.rng.random::<u8>());
                     }
                 }
             } else {
@@ -166,7 +171,6 @@ impl Direction {
 pub struct NoisyLink<L: ByteLink> {
     inner: L,
     config: NoiseConfig,
-    rng: ChaCha8Rng,
     enabled: bool,
     to_controller: Direction,
     to_host: Direction,
@@ -182,10 +186,9 @@ impl<L: ByteLink> NoisyLink<L> {
         NoisyLink {
             inner,
             config,
-            rng: ChaCha8Rng::seed_from_u64(config.seed),
             enabled: true,
-            to_controller: Direction::new(),
-            to_host: Direction::new(),
+            to_controller: Direction::new(ChaCha8Rng::seed_from_u64(config.seed)),
+            to_host: Direction::new(ChaCha8Rng::seed_from_u64(config.seed ^ TO_HOST_SEED_MIX)),
             incoming: VecDeque::new(),
             samples_delivered: VecDeque::new(),
             telemetry: TelemetryCheck::default(),
@@ -263,9 +266,7 @@ impl<L: ByteLink> ByteLink for NoisyLink<L> {
     fn send(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
         let rate = self.rate();
         let mut out = Vec::with_capacity(bytes.len() + 4);
-        let (_, delivered) = self
-            .to_controller
-            .carry(&mut self.rng, rate, bytes, &mut out);
+        let (_, delivered) = self.to_controller.carry(rate, bytes, &mut out);
         self.on_delivered_to_controller(delivered);
         self.inner.send(&out)
     }
@@ -276,9 +277,9 @@ impl<L: ByteLink> ByteLink for NoisyLink<L> {
             let n = self.inner.recv(&mut raw, timeout)?;
             let rate = self.rate();
             let mut out = Vec::with_capacity(n + 4);
-            let (sent, _) =
-                self.to_host
-                    .carry(&mut self.rng, rate, raw.get(..n).unwrap_or(&[]), &mut out);
+            let (sent, _) = self
+                .to_host
+                .carry(rate, raw.get(..n).unwrap_or(&[]), &mut out);
             self.on_sent_by_controller(sent);
             self.incoming.extend(out);
         }

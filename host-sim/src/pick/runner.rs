@@ -34,8 +34,13 @@ const SETTLE_AFTER_END_S: f64 = 0.5;
 const RESEND_AFTER: Duration = Duration::from_millis(1_000);
 
 /// The wait for a command once a refused frame was seen (the controller
-/// reported one, or a reply came damaged): a round trip on a board's link.
-const RESEND_AFTER_DAMAGE: Duration = Duration::from_millis(100);
+/// reported one, or a reply came damaged): a few round trips on the emulated
+/// board's link (about 2 ms each). A command that was only slow is answered
+/// again for the resent sample and skipped as stale.
+const RESEND_AFTER_DAMAGE: Duration = Duration::from_millis(20);
+
+/// How long the run reads a board's last replies after its last period.
+const DRAIN_AFTER_RUN: Duration = Duration::from_millis(200);
 
 /// Sends of one request (a sample, the handshake, the configuration) before
 /// the run gives up on the link: at [`RESEND_AFTER`] apart, 10 s in all (a
@@ -284,8 +289,8 @@ pub fn run_pick<L: ByteLink>(
                         Message::ActuatorCommand(command) if command.seq == sample.seq => {
                             break 'exchange command;
                         }
-                        // The answer to a sample sent twice: its period is done.
-                        Message::ActuatorCommand(command) if command.seq < sample.seq => {
+                        // The answer to an earlier sample sent twice: its period is done.
+                        Message::ActuatorCommand(_) => {
                             tally.record.stale_commands += 1;
                         }
                         Message::Telemetry(telemetry) => {
@@ -314,7 +319,6 @@ pub fn run_pick<L: ByteLink>(
                             records.push(tick_record(&telemetry, &truth));
                         }
                         Message::CalibrationReport(report) => {
-                            let truth = truth_at(&recent_truths, report.time_us, &truth);
                             let workcell = world.workcell();
                             calibrations.push(CalibrationRecord {
                                 t_s: truth.time_s,
@@ -390,10 +394,16 @@ pub fn run_pick<L: ByteLink>(
         }
     }
 
-    if link.inner().replies_are_synchronous() {
-        // What the last period left behind, so that the link's counts are whole.
+    {
+        // What the last period left behind, so that the link's counts are whole
+        // (a board's last replies may still be on the way).
+        let wait = if link.inner().replies_are_synchronous() {
+            Duration::from_millis(1)
+        } else {
+            DRAIN_AFTER_RUN
+        };
         loop {
-            match link.recv(Duration::from_millis(1), "the last replies") {
+            match link.recv(wait, "the last replies") {
                 Ok(Message::Telemetry(telemetry)) => tally.on_telemetry(&telemetry),
                 Ok(Message::ErrorReport { code, .. }) if code.is_frame_refusal() => {
                     tally.record.refusals_reported += 1;

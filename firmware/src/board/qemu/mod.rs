@@ -61,10 +61,10 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
 /// `-icount`; with `-icount sleep=off` it would jump straight to the
 /// watchdog's deadline). Fed once per period it would time the host's pauses,
 /// not the firmware: the host thinking, a session ending, or no host at all
-/// until the next session would reset the board, and a timeout long enough
-/// never to fire then (between sessions the wait is unbounded) would never
-/// fire. A
-/// firmware that hangs in lock step is already seen where it matters: the
+/// until the next session would reset the board. Between sessions the wait is
+/// unbounded, so no timeout is both long enough never to fire then and short
+/// enough ever to catch a hang. A firmware that hangs in lock step is already
+/// seen where it matters: the
 /// simulator gets no actuator command, and its drives' own watchdog brakes
 /// the arm (5 ms, in simulated time).
 pub struct NoWatchdog {

@@ -69,7 +69,7 @@ use crate::robot::{DriveOptions, JointTrig, JointVector, Puma560, SIMULATOR_COUL
 /// every frame of a calibration (about 215 in 43 s at 5 Hz) and every sighting
 /// instead of thinning them. The store's size is the pick's accuracy: 96 frames
 /// and 64 sightings (13 KiB) left the part 7.1 mm and 0.80 deg off at the 95th
-/// percentile over 1,000 workcells, 256 and 128 about 4.3 mm and 0.41 deg.
+/// percentile over 1,000 workcells, 256 and 128 4.2 mm and 0.43 deg.
 pub type PickCalibrator = SelfCalibrator<256, 128>;
 
 /// Events one control tick may leave for the pairer and the worker (a trigger
