@@ -221,6 +221,19 @@ impl QemuBoard {
         }
     }
 
+    /// Connects to UART0, for a test: panics with QEMU's own reason when it
+    /// already exited (e.g. the port was taken after it was picked), else
+    /// with the connection's error.
+    pub fn connect_uart(&mut self) -> host_sim::link::TcpLink {
+        match host_sim::link::TcpLink::connect(&self.uart_addr(), Duration::from_secs(10)) {
+            Ok(link) => link,
+            Err(e) => {
+                self.check_running().unwrap_or_else(|q| panic!("{q}"));
+                panic!("{e}");
+            }
+        }
+    }
+
     /// Kills the emulator and waits up to `limit` for it to go. Returns
     /// whether it is gone.
     pub fn shutdown(&mut self, limit: Duration) -> bool {

@@ -8,13 +8,14 @@
 
 use std::time::Duration;
 
-use host_sim::link::{FramedLink, TcpLink};
+use host_sim::link::FramedLink;
 use host_sim::pick::faults::violations;
-use host_sim::pick::record::{PickResult, PickRun};
+use host_sim::pick::record::PickResult;
 use host_sim::pick::runner::{run_pick, run_pick_in_process};
 use host_sim::pick::scenario::{FaultWindow, MissedCounts, PickExperiment, PickScenarioFile};
 use integration_tests::qemu::{firmware_elf_path, QemuBoard};
-use shared::protocol::{FaultCause, PickPhase};
+use integration_tests::stopping_at;
+use shared::protocol::FaultCause;
 
 const SEED: u64 = 1;
 
@@ -22,13 +23,6 @@ fn turning() -> PickExperiment {
     PickScenarioFile::embedded_default()
         .and_then(|file| file.experiment("turning").cloned())
         .unwrap_or_else(|e| panic!("{e:#}"))
-}
-
-fn stopping_at(run: &PickRun) -> f64 {
-    run.phases
-        .iter()
-        .find(|p| p.phase == PickPhase::Stopping)
-        .map_or(f64::NAN, |p| p.t_s)
 }
 
 #[test]
@@ -57,13 +51,7 @@ fn the_emulated_firmware_stops_safely_on_a_stall_a_counter_glitch_and_a_lost_cam
 
     let elf = firmware_elf_path();
     let mut board = QemuBoard::start(&elf).unwrap_or_else(|e| panic!("{e}"));
-    let tcp = match TcpLink::connect(&board.uart_addr(), Duration::from_secs(10)) {
-        Ok(link) => link,
-        Err(e) => {
-            board.check_running().unwrap_or_else(|q| panic!("{q}"));
-            panic!("{e}");
-        }
-    };
+    let tcp = board.connect_uart();
     let mut link = FramedLink::new(tcp);
     for (experiment, cause) in &cases {
         let emulated = run_pick(experiment, SEED, &mut link).unwrap_or_else(|e| {

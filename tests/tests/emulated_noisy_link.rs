@@ -9,22 +9,16 @@
 
 use std::time::Duration;
 
-use host_sim::link::{FramedLink, NoiseConfig, NoisyLink, TcpLink};
+use host_sim::link::{FramedLink, NoiseConfig, NoisyLink};
 use host_sim::pick::faults::{violations, NOISY_LINK_BYTE_ERROR_RATE};
-use host_sim::pick::record::{PickResult, PickRun};
+use host_sim::pick::record::PickResult;
 use host_sim::pick::runner::{run_pick, run_pick_in_process_noisy};
 use host_sim::pick::scenario::{FaultWindow, PickScenarioFile};
 use integration_tests::qemu::{firmware_elf_path, QemuBoard};
-use shared::protocol::{FaultCause, PickPhase};
+use integration_tests::stopping_at;
+use shared::protocol::FaultCause;
 
 const SEED: u64 = 1;
-
-fn stopping_at(run: &PickRun) -> f64 {
-    run.phases
-        .iter()
-        .find(|p| p.phase == PickPhase::Stopping)
-        .map_or(f64::NAN, |p| p.t_s)
-}
 
 #[test]
 fn the_emulated_firmware_rides_a_noisy_line_and_counts_every_refusal() {
@@ -42,13 +36,7 @@ fn the_emulated_firmware_rides_a_noisy_line_and_counts_every_refusal() {
 
     let elf = firmware_elf_path();
     let mut board = QemuBoard::start(&elf).unwrap_or_else(|e| panic!("{e}"));
-    let tcp = match TcpLink::connect(&board.uart_addr(), Duration::from_secs(10)) {
-        Ok(link) => link,
-        Err(e) => {
-            board.check_running().unwrap_or_else(|q| panic!("{q}"));
-            panic!("{e}");
-        }
-    };
+    let tcp = board.connect_uart();
     let mut link = FramedLink::new(NoisyLink::new(tcp, noise));
     let emulated = run_pick(&blind, SEED, &mut link).unwrap_or_else(|e| {
         board.check_running().unwrap_or_else(|q| panic!("{q}"));

@@ -7,7 +7,7 @@
 
 use std::time::{Duration, Instant};
 
-use host_sim::link::{FramedLink, TcpLink};
+use host_sim::link::FramedLink;
 use host_sim::pick::record::{PickResult, PickRun};
 use host_sim::pick::runner::{run_pick, run_pick_in_process};
 use host_sim::pick::scenario::PickScenarioFile;
@@ -67,13 +67,7 @@ fn the_emulated_firmware_picks_the_part_as_the_in_process_controller_does() {
         .unwrap_or_else(|e| panic!("{e:#}"));
     let elf = firmware_elf_path();
     let mut board = QemuBoard::start_counting_instructions(&elf).unwrap_or_else(|e| panic!("{e}"));
-    let tcp = match TcpLink::connect(&board.uart_addr(), Duration::from_secs(10)) {
-        Ok(link) => link,
-        Err(e) => {
-            board.check_running().unwrap_or_else(|q| panic!("{q}"));
-            panic!("{e}");
-        }
-    };
+    let tcp = board.connect_uart();
     let mut link = FramedLink::new(tcp);
     let started = Instant::now();
     let emulated = run_pick(&experiment, SEED, &mut link).unwrap_or_else(|e| {

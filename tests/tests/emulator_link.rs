@@ -5,7 +5,7 @@
 use std::time::Duration;
 
 use integration_tests::link::check::Session;
-use integration_tests::link::{ByteLink, InProcessLink, TcpLink};
+use integration_tests::link::{ByteLink, InProcessLink};
 use integration_tests::qemu::{firmware_elf_path, QemuBoard};
 
 /// Frames exchanged (the issue asks for at least 10 000).
@@ -87,15 +87,7 @@ fn exercise<L: ByteLink>(link: L, expected_board: &str) -> Session<L> {
 fn emulated_firmware_exchanges_frames_and_recovers_from_corruption() {
     let elf = firmware_elf_path();
     let mut board = QemuBoard::start(&elf).unwrap_or_else(|e| panic!("{e}"));
-    let link = match TcpLink::connect(&board.uart_addr(), Duration::from_secs(10)) {
-        Ok(link) => link,
-        Err(e) => {
-            // Say why QEMU is not listening if it already exited (e.g. the port
-            // was taken after it was picked).
-            board.check_running().unwrap_or_else(|q| panic!("{q}"));
-            panic!("{e}");
-        }
-    };
+    let link = board.connect_uart();
     board.check_running().unwrap_or_else(|e| panic!("{e}"));
 
     let started = std::time::Instant::now();
