@@ -418,12 +418,21 @@ fn pose_panel(
 }
 
 /// Fig 5/7/9: estimate minus truth in X, Y, Z (mm) and yaw (deg), with the
-/// estimator's 1-sigma band around zero where it reports one.
+/// estimator's 1-sigma band around zero where it reports one, until the
+/// gripper closes (from then on the part rides in the gripper, off the disc,
+/// and the estimate of a part on the disc has nothing to match).
 fn draw_part_pose_error<'a>(
     root: &Area<'a>,
     run: &PickRun,
     samples: &[TickRecord],
 ) -> DrawResult<'a> {
+    let until_s = run.grasp.as_ref().map_or(f64::INFINITY, |g| g.t_s);
+    let on_disc: Vec<TickRecord> = samples
+        .iter()
+        .filter(|r| r.t_s <= until_s)
+        .copied()
+        .collect();
+    let samples = on_disc.as_slice();
     let titled = root.titled(
         &format!(
             "{}: part pose estimation error (estimate - actual)",
