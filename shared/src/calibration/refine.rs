@@ -8,7 +8,7 @@
 //! `outlier_gate_sigma` robust sigmas (phase 2). Memory is fixed: the normal equations
 //! are one `PARAMETERS x PARAMETERS` matrix whatever the number of frames.
 
-use nalgebra::{Cholesky, SMatrix, Vector2};
+use nalgebra::{SMatrix, Vector2};
 
 use super::config::CalibrationConfig;
 use super::error::CalibrationError;
@@ -100,13 +100,18 @@ fn total_cost(problem: &Problem<'_>, model: &WorkcellModel, loss: &Loss) -> f64 
     cost
 }
 
+/// The Gauss-Newton normal equations at `model`, written into the caller's
+/// `normal` and `gradient` (9 KiB a matrix: filled in place rather than
+/// returned, so a firmware stack does not hold a second copy).
 fn normal_equations(
     problem: &Problem<'_>,
     model: &WorkcellModel,
     loss: &Loss,
-) -> (Normal, Gradient) {
-    let mut normal = Normal::zeros();
-    let mut gradient = Gradient::zeros();
+    normal: &mut Normal,
+    gradient: &mut Gradient,
+) {
+    normal.fill(0.0);
+    gradient.fill(0.0);
     for_each_observation(
         problem.frames,
         problem.effectors,
@@ -123,8 +128,8 @@ fn normal_equations(
                 return;
             }
             accumulate(
-                &mut normal,
-                &mut gradient,
+                normal,
+                gradient,
                 &jacobian.camera,
                 &jacobian.other,
                 &residual,
@@ -132,7 +137,6 @@ fn normal_equations(
             );
         },
     );
-    (normal, gradient)
 }
 
 fn accumulate(
@@ -173,6 +177,58 @@ fn accumulate(
     go += block_t * residual;
 }
 
+/// Solves `a x = b` for a symmetric positive-definite `a` by Cholesky, in
+/// place: `a`'s lower triangle becomes the factor L (a = L L^T) and `b`
+/// becomes x. False, with `a` and `b` spoilt, when `a` is not positive
+/// definite (a pivot not above zero, or not finite).
+fn cholesky_solve_in_place(a: &mut Normal, b: &mut Gradient) -> bool {
+    let n = PARAMETERS;
+    let at = |a: &Normal, i: usize, j: usize| a.get((i, j)).copied().unwrap_or(0.0);
+    for j in 0..n {
+        let mut pivot = at(a, j, j);
+        for k in 0..j {
+            let l = at(a, j, k);
+            pivot -= l * l;
+        }
+        if !(pivot.is_finite() && pivot > 0.0) {
+            return false;
+        }
+        let diagonal = libm::sqrt(pivot);
+        if let Some(e) = a.get_mut((j, j)) {
+            *e = diagonal;
+        }
+        for i in (j + 1)..n {
+            let mut value = at(a, i, j);
+            for k in 0..j {
+                value -= at(a, i, k) * at(a, j, k);
+            }
+            if let Some(e) = a.get_mut((i, j)) {
+                *e = value / diagonal;
+            }
+        }
+    }
+    // L y = b, then L^T x = y.
+    for i in 0..n {
+        let mut value = b.get(i).copied().unwrap_or(0.0);
+        for k in 0..i {
+            value -= at(a, i, k) * b.get(k).copied().unwrap_or(0.0);
+        }
+        if let Some(e) = b.get_mut(i) {
+            *e = value / at(a, i, i);
+        }
+    }
+    for i in (0..n).rev() {
+        let mut value = b.get(i).copied().unwrap_or(0.0);
+        for k in (i + 1)..n {
+            value -= at(a, k, i) * b.get(k).copied().unwrap_or(0.0);
+        }
+        if let Some(e) = b.get_mut(i) {
+            *e = value / at(a, i, i);
+        }
+    }
+    true
+}
+
 /// Parameters the data cannot move: unused feature slots, base (no sightings), base z.
 fn frozen(problem: &Problem<'_>, index: usize) -> bool {
     if (FEATURE_OFFSET..BASE_OFFSET).contains(&index) {
@@ -195,11 +251,16 @@ fn minimise(
     let mut model = start;
     let mut cost = total_cost(problem, &model, loss);
     let mut damping = 1e-4;
+    // One damped copy for every try, factorised in place: a firmware stack
+    // holds the normal matrix and this one (9 KiB each), not also a factor.
+    let mut damped = Normal::zeros();
+    let mut normal = Normal::zeros();
+    let mut gradient = Gradient::zeros();
     for _ in 0..max_iterations {
-        let (normal, gradient) = normal_equations(problem, &model, loss);
+        normal_equations(problem, &model, loss, &mut normal, &mut gradient);
         let mut improved = false;
         while damping < 1e10 {
-            let mut damped = normal;
+            damped.copy_from(&normal);
             for i in 0..PARAMETERS {
                 let diagonal = damped.get((i, i)).copied().unwrap_or(0.0);
                 let value = if frozen(problem, i) {
@@ -231,11 +292,11 @@ fn minimise(
                     }
                 }
             }
-            let Some(cholesky) = Cholesky::new(damped) else {
+            let mut step = rhs;
+            if !cholesky_solve_in_place(&mut damped, &mut step) {
                 damping *= 10.0;
                 continue;
-            };
-            let step = cholesky.solve(&rhs);
+            }
             if !step.iter().all(|v| v.is_finite()) {
                 return Err(CalibrationError::NumericalFailure {
                     stage: "bundle adjustment step",
@@ -391,7 +452,9 @@ fn covariance_at(
         huber_px: f64::INFINITY,
         gate_px: Some(gate),
     };
-    let (mut normal, _) = normal_equations(problem, model, &unit);
+    let mut normal = Normal::zeros();
+    let mut gradient = Gradient::zeros();
+    normal_equations(problem, model, &unit, &mut normal, &mut gradient);
     for i in 0..PARAMETERS {
         if frozen(problem, i) {
             for j in 0..PARAMETERS {
@@ -419,4 +482,45 @@ fn covariance_at(
         }
     }
     Some(normal)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A symmetric positive-definite matrix of the normal equations' size.
+    fn spd(seed: u64) -> Normal {
+        let mut state = seed;
+        let m = Normal::from_fn(|_, _| crate::test_rng::splitmix(&mut state) - 0.5);
+        m * m.transpose() + Normal::identity() * 0.1
+    }
+
+    #[test]
+    fn the_in_place_solve_agrees_with_nalgebras_cholesky() {
+        for seed in 1..20 {
+            let a = spd(seed);
+            let b = Gradient::from_fn(|i, _| (i as f64 * 0.37).sin());
+            let expected = nalgebra::Cholesky::new(a).unwrap().solve(&b);
+            let (mut factor, mut x) = (a, b);
+            assert!(cholesky_solve_in_place(&mut factor, &mut x));
+            let scale = expected.norm();
+            assert!((x - expected).norm() <= 1e-9 * scale, "seed {seed}");
+            assert!((a * x - b).norm() <= 1e-9 * b.norm() * a.norm());
+        }
+    }
+
+    #[test]
+    fn a_matrix_that_is_not_positive_definite_is_refused() {
+        let mut a = spd(3);
+        if let Some(e) = a.get_mut((5, 5)) {
+            *e = -1.0;
+        }
+        let mut b = Gradient::zeros();
+        assert!(!cholesky_solve_in_place(&mut a, &mut b));
+        let mut nan = spd(4);
+        if let Some(e) = nan.get_mut((0, 0)) {
+            *e = f64::NAN;
+        }
+        assert!(!cholesky_solve_in_place(&mut nan, &mut b));
+    }
 }
