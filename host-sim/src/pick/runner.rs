@@ -47,28 +47,17 @@ const DRAIN_AFTER_RUN: Duration = Duration::from_millis(200);
 /// real board or an emulator may be slow to answer).
 const MAX_SENDS: u32 = 10;
 
-/// What the runner saw of the link, counted into the run's [`LinkRecord`].
-#[derive(Default)]
-struct LinkTally {
-    record: LinkRecord,
-}
-
-impl LinkTally {
-    fn on_telemetry(&mut self, telemetry: &PickTelemetry) {
-        self.record.controller_frames_rejected = telemetry.frames_rejected;
-    }
-
-    /// Sorts out a failed receive: a lost reply (`Ok(true)`: send again), a
-    /// refused frame (`Ok(false)`: keep waiting) or a dead link (`Err`).
-    fn on_recv_error(&mut self, error: LinkError) -> Result<bool> {
-        match error {
-            LinkError::Timeout { .. } => Ok(true),
-            LinkError::CorruptReply(_) => {
-                self.record.replies_refused += 1;
-                Ok(false)
-            }
-            other => Err(other.into()),
+/// Sorts out a failed receive, counting it in `record`: a lost reply
+/// (`Ok(true)`: send again), a refused frame (`Ok(false)`: keep waiting) or a
+/// dead link (`Err`).
+fn resend_after(record: &mut LinkRecord, error: LinkError) -> Result<bool> {
+    match error {
+        LinkError::Timeout { .. } => Ok(true),
+        LinkError::CorruptReply(_) => {
+            record.replies_refused += 1;
+            Ok(false)
         }
+        other => Err(other.into()),
     }
 }
 
@@ -76,20 +65,20 @@ impl LinkTally {
 /// [`MAX_SENDS`] times; replies `accept` passes over (`None`) are skipped.
 fn request<L: ByteLink, T>(
     link: &mut FramedLink<L>,
-    tally: &mut LinkTally,
+    tally: &mut LinkRecord,
     request: &Message,
     expecting: &str,
     mut accept: impl FnMut(Message) -> Result<Option<T>>,
 ) -> Result<T> {
     for send in 0..MAX_SENDS {
         if send > 0 {
-            tally.record.session_resends += 1;
+            tally.session_resends += 1;
         }
         link.send(request)?;
         loop {
             match link.recv(RESEND_AFTER, expecting) {
                 Ok(Message::ErrorReport { code, .. }) if code.is_frame_refusal() => {
-                    tally.record.refusals_reported += 1;
+                    tally.refusals_reported += 1;
                 }
                 Ok(message) => {
                     if let Some(value) = accept(message)? {
@@ -97,7 +86,7 @@ fn request<L: ByteLink, T>(
                     }
                 }
                 Err(e) => {
-                    if tally.on_recv_error(e)? {
+                    if resend_after(tally, e)? {
                         break;
                     }
                 }
@@ -125,7 +114,7 @@ fn truth_at(recent: &VecDeque<(u64, WorldTruth)>, time_us: u64, now: &WorldTruth
 /// Opens the session and sends the cell configuration.
 fn open_session<L: ByteLink>(
     link: &mut FramedLink<L>,
-    tally: &mut LinkTally,
+    tally: &mut LinkRecord,
     world: &World,
 ) -> Result<()> {
     let mut peer_name = heapless::String::new();
@@ -207,7 +196,7 @@ pub fn run_pick<L: ByteLink>(
 ) -> Result<PickRun> {
     let mut world = World::new(experiment, seed)
         .with_context(|| format!("building the world of {} (seed {seed})", experiment.name))?;
-    let mut tally = LinkTally::default();
+    let mut tally = LinkRecord::default();
     open_session(link, &mut tally, &world)?;
     let model = *world.plant().model();
     let limits = *model.joint_limits();
@@ -261,7 +250,7 @@ pub fn run_pick<L: ByteLink>(
         let command = 'exchange: {
             for send in 0..MAX_SENDS {
                 if send > 0 {
-                    tally.record.samples_resent += 1;
+                    tally.samples_resent += 1;
                 }
                 link.send(&Message::SensorSample(sample))?;
                 // A refused frame either way may have been this sample or its
@@ -278,7 +267,7 @@ pub fn run_pick<L: ByteLink>(
                         Ok(reply) => reply,
                         Err(e) => {
                             let refused = matches!(e, LinkError::CorruptReply(_));
-                            if tally.on_recv_error(e)? {
+                            if resend_after(&mut tally, e)? {
                                 break;
                             }
                             damage_seen |= refused;
@@ -291,10 +280,10 @@ pub fn run_pick<L: ByteLink>(
                         }
                         // The answer to an earlier sample sent twice: its period is done.
                         Message::ActuatorCommand(_) => {
-                            tally.record.stale_commands += 1;
+                            tally.stale_commands += 1;
                         }
                         Message::Telemetry(telemetry) => {
-                            tally.on_telemetry(&telemetry);
+                            tally.controller_frames_rejected = telemetry.frames_rejected;
                             // The truth at the telemetry's own instant (it comes
                             // after its period's command, a period or more late).
                             let truth = truth_at(&recent_truths, telemetry.time_us, &truth);
@@ -341,7 +330,7 @@ pub fn run_pick<L: ByteLink>(
                         ),
                         Message::Ack { .. } => {}
                         Message::ErrorReport { code, .. } if code.is_frame_refusal() => {
-                            tally.record.refusals_reported += 1;
+                            tally.refusals_reported += 1;
                             damage_seen = true;
                         }
                         Message::ErrorReport { code, detail } => {
@@ -404,20 +393,22 @@ pub fn run_pick<L: ByteLink>(
         };
         loop {
             match link.recv(wait, "the last replies") {
-                Ok(Message::Telemetry(telemetry)) => tally.on_telemetry(&telemetry),
+                Ok(Message::Telemetry(telemetry)) => {
+                    tally.controller_frames_rejected = telemetry.frames_rejected
+                }
                 Ok(Message::ErrorReport { code, .. }) if code.is_frame_refusal() => {
-                    tally.record.refusals_reported += 1;
+                    tally.refusals_reported += 1;
                 }
                 Ok(_) => {}
                 Err(e) => {
-                    if tally.on_recv_error(e)? {
+                    if resend_after(&mut tally, e)? {
                         break;
                     }
                 }
             }
         }
     }
-    tally.record.noise = link.inner().noise();
+    tally.noise = link.inner().noise();
 
     let duration_s = world.time_s();
     let end_joint_speed_rad_s = world
@@ -463,7 +454,7 @@ pub fn run_pick<L: ByteLink>(
             f64::NAN
         },
         end_joint_speed_rad_s,
-        link: tally.record,
+        link: tally,
     })
 }
 
