@@ -67,6 +67,13 @@ fn run() -> Option<()> {
     let qd = Joints::new(0.3_f32, -0.2, 0.4, 0.01, -0.3, 0.2);
     let mut controller = TaskSpaceController::new(config()?).ok()?;
 
+    // `BENCH_M4_ONLY=pick` at build time (bench-m4/profile.sh): only the pick's
+    // control period, so that an execution trace profiles nothing else.
+    if option_env!("BENCH_M4_ONLY") == Some("pick") {
+        pick_tick(&timer, &model, &q);
+        return Some(());
+    }
+
     hprintln!(
         "bench-m4: instructions per call on mps2-an386 (Cortex-M4F), {} calls each",
         CALLS
@@ -283,6 +290,9 @@ fn pick_tick(timer: &timer::DualTimer, model: &Puma560<f32>, q: &Joints<f32>) {
         tick,
         pick.phase()
     );
+    if option_env!("BENCH_M4_ONLY").is_some() {
+        return;
+    }
     hprintln!(
         "  forward kinematics (f32)        {:>6}",
         timer.measure(CALLS, || model.forward_kinematics(black_box(q)))

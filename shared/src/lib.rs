@@ -12,6 +12,7 @@
 //! - [`calibration`]: virtual rotation, part localisation, robot-to-disc self-calibration (Sections 2 and 3).
 //! - [`robot`]: PUMA 560 kinematics and dynamics (Section 4, Eq 16).
 //! - [`control`]: task-space computed-torque control (Eq 23).
+//! - [`kernels`]: straight-line small-vector kernels of the control period (the firmware is built for size).
 //! - [`app`]: the controller application that the firmware and the in-process simulator both run.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
@@ -29,6 +30,7 @@ pub mod app;
 pub mod calibration;
 pub mod control;
 pub mod fusion;
+pub mod kernels;
 pub mod observation;
 pub mod planning;
 pub mod protocol;

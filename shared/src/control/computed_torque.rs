@@ -15,6 +15,7 @@ use super::error::{ControlError, ControlInput, ControlStage};
 use super::gains::{AxisGains, TaskGains};
 use super::model::{Joints, TaskKinematics, TaskSpaceModel};
 use super::orientation::orientation_error;
+use crate::kernels::{all_finite, mul6};
 
 /// Desired motion of the flange (frame {6}), all in the base frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -112,10 +113,6 @@ pub struct TaskSpaceController<T: RealField + Copy> {
     error_integral: Vector6<T>,
     last_finite_q: Option<Joints<T>>,
     integral_frozen: bool,
-}
-
-fn all_finite<T: RealField + Copy, const N: usize>(v: &nalgebra::SVector<T, N>) -> bool {
-    v.iter().all(|x| x.is_finite())
 }
 
 fn pose_is_finite<T: RealField + Copy>(pose: &Isometry3<T>) -> bool {
@@ -225,7 +222,7 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
                 ControlStage::ForwardKinematics,
             ));
         }
-        if !jacobian.iter().all(|x| x.is_finite()) || !all_finite(&jdot_qd) {
+        if !all_finite(&jacobian) || !all_finite(&jdot_qd) {
             return Err(ControlError::NonFiniteResult(ControlStage::Jacobian));
         }
 
@@ -243,7 +240,7 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
             orientation_error.y,
             orientation_error.z,
         );
-        let error_rate = reference.twist - jacobian * qd;
+        let error_rate = reference.twist - mul6(&jacobian, qd);
         let integral = self.integrate(&error, dt);
 
         // Eq 23's outer loop, `a = Yd_ddot + Kv e_dot + Kp e (+ Ki int e)`,

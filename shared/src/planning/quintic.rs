@@ -62,13 +62,30 @@ impl<T: RealField + Copy, const D: usize> Quintic<T, D> {
     }
 
     /// Position, velocity and acceleration at `t`, clamped to the segment.
+    ///
+    /// Component by component (the same Horner forms, so the same bits as the
+    /// vector expressions): sampled every control period, and nalgebra's
+    /// element loops are not unrolled in the firmware's size-tuned build.
     pub fn sample(&self, t: T) -> [SVector<T, D>; 3] {
         let t = t.max(T::zero()).min(self.duration);
-        let [c0, c1, c2, c3, c4, c5] = self.coefficients;
+        let [c0, c1, c2, c3, c4, c5] = &self.coefficients;
         let k = |x: f64| -> T { convert(x) };
-        let p = c0 + (c1 + (c2 + (c3 + (c4 + c5 * t) * t) * t) * t) * t;
-        let v = c1 + (c2 * k(2.0) + (c3 * k(3.0) + (c4 * k(4.0) + c5 * (k(5.0) * t)) * t) * t) * t;
-        let a = c2 * k(2.0) + (c3 * k(6.0) + (c4 * k(12.0) + c5 * (k(20.0) * t)) * t) * t;
+        let (two, three, four, five) = (k(2.0), k(3.0), k(4.0), k(5.0));
+        let (six, twelve, twenty) = (k(6.0), k(12.0), k(20.0));
+        let (mut p, mut v, mut a) = (
+            SVector::<T, D>::zeros(),
+            SVector::<T, D>::zeros(),
+            SVector::<T, D>::zeros(),
+        );
+        let outputs = p.iter_mut().zip(v.iter_mut()).zip(a.iter_mut());
+        let inputs = c0.iter().zip(c1.iter()).zip(c2.iter()).zip(c3.iter());
+        for (((((p, v), a), (((&k0, &k1), &k2), &k3)), &k4), &k5) in
+            outputs.zip(inputs).zip(c4.iter()).zip(c5.iter())
+        {
+            *p = k0 + (k1 + (k2 + (k3 + (k4 + k5 * t) * t) * t) * t) * t;
+            *v = k1 + (k2 * two + (k3 * three + (k4 * four + k5 * (five * t)) * t) * t) * t;
+            *a = k2 * two + (k3 * six + (k4 * twelve + k5 * (twenty * t)) * t) * t;
+        }
         [p, v, a]
     }
 }

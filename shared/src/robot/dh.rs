@@ -9,6 +9,7 @@
 use nalgebra::{RealField, Vector3};
 
 use super::JointVector;
+use crate::kernels::{combine3, scale3};
 
 /// The DH twist `alpha_i` of a link; the PUMA 560 only has these three values.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -107,12 +108,12 @@ impl<T: RealField + Copy> DhLink<T> {
     #[inline(always)]
     pub fn child_axes(&self, trig: &SinCos<T>, parent_axes: &[Vector3<T>; 3]) -> [Vector3<T>; 3] {
         let [x, y, z] = parent_axes;
-        let x_child = x * trig.cos + y * trig.sin;
-        let y_turned = y * trig.cos - x * trig.sin;
+        let x_child = combine3(x, trig.cos, y, trig.sin);
+        let y_turned = combine3(y, trig.cos, x, -trig.sin);
         match self.twist {
             Twist::Zero => [x_child, y_turned, *z],
-            Twist::PlusHalfPi => [x_child, *z, -y_turned],
-            Twist::MinusHalfPi => [x_child, -z, y_turned],
+            Twist::PlusHalfPi => [x_child, *z, scale3(&y_turned, -T::one())],
+            Twist::MinusHalfPi => [x_child, scale3(z, -T::one()), y_turned],
         }
     }
 }

@@ -9,6 +9,7 @@ use nalgebra::{
 use super::dh::JointTrig;
 use super::model::Puma560;
 use super::JointVector;
+use crate::kernels::{add3, cross3, mul3, scale3, sub3};
 
 /// Poses of the DH frames {0}..{6} in the base frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -52,7 +53,10 @@ impl<T: RealField + Copy> Puma560<T> {
             let [x_child, _, _] = child_axes;
             let [_, _, z_parent] = parent_axes;
             // A_i = Rz(q) Tz(d) Tx(a) Rx(alpha): d along z_{i-1}, a along the new x_i.
-            let origin = parent_origin + z_parent * link.d + x_child * link.a;
+            let origin = add3(
+                &add3(&parent_origin, &scale3(&z_parent, link.d)),
+                &scale3(&x_child, link.a),
+            );
             *axes_out = child_axes;
             *origin_out = origin;
             parent_axes = child_axes;
@@ -101,7 +105,7 @@ impl<T: RealField + Copy> Puma560<T> {
             .zip(chain.origins.iter())
         {
             let [_, _, z] = axes;
-            let linear = z.cross(&(flange - origin));
+            let linear = cross3(z, &sub3(&flange, origin));
             column.fixed_rows_mut::<3>(0).copy_from(&linear);
             column.fixed_rows_mut::<3>(3).copy_from(z);
         }
@@ -134,8 +138,8 @@ impl<T: RealField + Copy> Puma560<T> {
         let motion = self.forward_motion(trig, qd, &zero, &Vector3::zeros());
         let [.., flange] = motion;
         let rotation = chain.base_from_flange_rotation();
-        let linear = rotation * flange.linear_acceleration;
-        let angular = rotation * flange.angular_acceleration;
+        let linear = mul3(&rotation, &flange.linear_acceleration);
+        let angular = mul3(&rotation, &flange.angular_acceleration);
         Vector6::new(
             linear.x, linear.y, linear.z, angular.x, angular.y, angular.z,
         )

@@ -12,6 +12,7 @@ use nalgebra::{RealField, Vector3};
 use super::dh::{DhLink, JointTrig, SinCos};
 use super::model::Puma560;
 use super::JointVector;
+use crate::kernels::{add3, cross3, mul3, scale3};
 
 /// Motion of link frame {i}, in frame-{i} coordinates.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -66,9 +67,13 @@ impl<T: RealField + Copy> Puma560<T> {
             );
             angular_velocity = link.to_child(joint_trig, &w_joint);
             angular_acceleration = link.to_child(joint_trig, &wd_joint);
-            linear_acceleration = angular_acceleration.cross(origin)
-                + angular_velocity.cross(&angular_velocity.cross(origin))
-                + link.to_child(joint_trig, &linear_acceleration);
+            linear_acceleration = add3(
+                &add3(
+                    &cross3(&angular_acceleration, origin),
+                    &cross3(&angular_velocity, &cross3(&angular_velocity, origin)),
+                ),
+                &link.to_child(joint_trig, &linear_acceleration),
+            );
             *out = LinkMotion {
                 angular_velocity,
                 angular_acceleration,
@@ -111,9 +116,17 @@ impl<T: RealField + Copy> Puma560<T> {
                 linear_acceleration: vd,
             } = *link_motion;
             let h = body.first_moment;
-            let inertia_force = vd * body.mass + wd.cross(&h) + w.cross(&w.cross(&h));
-            let inertia_moment =
-                body.inertia_origin * wd + w.cross(&(body.inertia_origin * w)) + h.cross(&vd);
+            let inertia_force = add3(
+                &add3(&scale3(&vd, body.mass), &cross3(&wd, &h)),
+                &cross3(&w, &cross3(&w, &h)),
+            );
+            let inertia_moment = add3(
+                &add3(
+                    &mul3(&body.inertia_origin, &wd),
+                    &cross3(&w, &mul3(&body.inertia_origin, &w)),
+                ),
+                &cross3(&h, &vd),
+            );
             let (force_from_outboard, moment_from_outboard) = match outboard_link {
                 Some((outer_link, outer_trig)) => (
                     outer_link.to_parent(outer_trig, &force),
@@ -121,8 +134,11 @@ impl<T: RealField + Copy> Puma560<T> {
                 ),
                 None => (Vector3::zeros(), Vector3::zeros()),
             };
-            force = force_from_outboard + inertia_force;
-            moment = moment_from_outboard + inertia_moment + origin.cross(&force);
+            force = add3(&force_from_outboard, &inertia_force);
+            moment = add3(
+                &add3(&moment_from_outboard, &inertia_moment),
+                &cross3(origin, &force),
+            );
             *tau_out = link.along_joint_axis(&moment);
             outboard_link = Some((link, joint_trig));
         }
