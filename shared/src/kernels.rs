@@ -95,7 +95,7 @@ pub fn mul6<T: RealField + Copy>(m: &Matrix6<T>, v: &Vector6<T>) -> Vector6<T> {
     )
 }
 
-/// True if no entry is NaN or infinite. Branch-free: `x - x` is 0 for a
+/// True if no entry is NaN or infinite. Branch-free: `0 x` is 0 for a
 /// finite `x` and NaN otherwise, so one sum over the contiguous storage
 /// tells; an early-exit `all(is_finite)` through nalgebra's iterator costs
 /// about 20 instructions an entry at opt-level "s", this about 3.
@@ -105,7 +105,7 @@ pub fn all_finite<T: RealField + Copy, const R: usize, const C: usize>(
 ) -> bool {
     let mut sum = T::zero();
     for &x in m.as_slice() {
-        sum += x - x;
+        sum += x * T::zero();
     }
     sum == T::zero()
 }

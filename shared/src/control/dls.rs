@@ -135,85 +135,83 @@ fn gram<T: RealField + Copy>(rows: &[[T; 6]; 6]) -> [[T; 6]; 6] {
 }
 
 /// `A = L D L^T` of a symmetric positive-definite 6x6: `L` unit lower
-/// triangular (stored without its diagonal, zeros elsewhere, so that a full
-/// six-term dot product of two rows sums exactly the terms the recursion
-/// needs), `D` diagonal. No square roots: `det A = prod D_i`.
+/// triangular (stored without its diagonal, zeros elsewhere), `D` diagonal.
+/// No square roots: `det A = prod D_i`.
 struct Factor<T> {
     /// Strictly lower part of `L`, row-major.
     lower: [[T; 6]; 6],
-    /// `L^T` (strictly upper part), row-major, for the back substitution.
-    upper: [[T; 6]; 6],
     diagonal: [T; 6],
-}
-
-fn entry<T: RealField + Copy>(m: &[[T; 6]; 6], i: usize, j: usize) -> T {
-    m.get(i)
-        .and_then(|row| row.get(j))
-        .copied()
-        .unwrap_or_else(T::zero)
-}
-
-fn set<T: RealField + Copy>(m: &mut [[T; 6]; 6], i: usize, j: usize, value: T) {
-    if let Some(slot) = m.get_mut(i).and_then(|row| row.get_mut(j)) {
-        *slot = value;
-    }
 }
 
 fn row<T: RealField + Copy>(m: &[[T; 6]; 6], i: usize) -> [T; 6] {
     m.get(i).copied().unwrap_or([T::zero(); 6])
 }
 
+/// `sum_k a_k d_k b_k`.
+#[inline(always)]
+fn weighted_dot6<T: RealField + Copy>(a: &[T; 6], d: &[T; 6], b: &[T; 6]) -> T {
+    let [a0, a1, a2, a3, a4, a5] = *a;
+    let [d0, d1, d2, d3, d4, d5] = *d;
+    let [b0, b1, b2, b3, b4, b5] = *b;
+    a0 * d0 * b0 + a1 * d1 * b1 + a2 * d2 * b2 + a3 * d3 * b3 + a4 * d4 * b4 + a5 * d5 * b5
+}
+
 impl<T: RealField + Copy> Factor<T> {
     /// `None` unless every pivot `D_i` is finite and positive.
+    ///
+    /// Row `i` of `L` is filled left to right; its entries from `j` on are
+    /// still zero when `L_ij` is computed, and `D_k` is zero for `k >= i`, so
+    /// full six-term weighted dot products sum exactly the recursion's terms
+    /// `sum_{k<j} L_ik D_k L_jk`.
     fn new(a: &[[T; 6]; 6]) -> Option<Self> {
-        let zero = [[T::zero(); 6]; 6];
-        let (mut lower, mut upper) = (zero, zero);
+        let mut lower = [[T::zero(); 6]; 6];
         let mut diagonal = [T::zero(); 6];
-        // `scaled` row i holds E_ik = L_ik D_k for the k done so far.
-        let mut scaled = zero;
-        for i in 0..6 {
-            for j in 0..i {
-                let e = entry(a, i, j) - dot6(&row(&scaled, i), &row(&lower, j));
-                let l = e / diagonal.get(j).copied().unwrap_or_else(T::one);
-                set(&mut scaled, i, j, e);
-                set(&mut lower, i, j, l);
-                set(&mut upper, j, i, l);
+        for (i, a_row) in a.iter().enumerate() {
+            let mut l_row = [T::zero(); 6];
+            for (j, (&a_ij, l_j)) in a_row.iter().zip(lower.iter()).enumerate().take(i) {
+                let d_j = diagonal.get(j).copied().unwrap_or_else(T::one);
+                let value = (a_ij - weighted_dot6(&l_row, &diagonal, l_j)) / d_j;
+                *l_row.get_mut(j)? = value;
             }
-            let pivot = entry(a, i, i) - dot6(&row(&scaled, i), &row(&lower, i));
+            let pivot = a_row.get(i).copied().unwrap_or_else(T::zero)
+                - weighted_dot6(&l_row, &diagonal, &l_row);
             if !(pivot.is_finite() && pivot > T::zero()) {
                 return None;
             }
             *diagonal.get_mut(i)? = pivot;
+            *lower.get_mut(i)? = l_row;
         }
-        Some(Self {
-            lower,
-            upper,
-            diagonal,
-        })
+        Some(Self { lower, diagonal })
     }
 
     fn determinant(&self) -> T {
-        self.diagonal.iter().fold(T::one(), |p, &d| p * d)
+        let [d0, d1, d2, d3, d4, d5] = self.diagonal;
+        d0 * d1 * d2 * d3 * d4 * d5
     }
 
-    /// `A^-1 b`: `L z = b`, `y = D^-1 z`, `L^T x = y`. Each unknown is
-    /// solved into a vector whose unsolved entries are still zero, so a full
-    /// dot product with the (zero-padded) row sums only the solved ones.
+    /// `A^-1 b`: `L z = b`, `y = D^-1 z`, `L^T x = y`. `L z = b` solves into
+    /// a vector whose unsolved entries are still zero, so a full dot product
+    /// with the zero-padded row sums only the solved ones; `L^T x = y` runs
+    /// down the columns of `L` as rows, subtracting each solved `x_i` from
+    /// the rest.
     fn solve(&self, b: &[T; 6]) -> [T; 6] {
         let mut z = [T::zero(); 6];
-        for i in 0..6 {
-            let value = b.get(i).copied().unwrap_or_else(T::zero) - dot6(&row(&self.lower, i), &z);
+        for (i, l_row) in self.lower.iter().enumerate() {
+            let value = b.get(i).copied().unwrap_or_else(T::zero) - dot6(l_row, &z);
             if let Some(slot) = z.get_mut(i) {
                 *slot = value;
             }
         }
-        let mut x = [T::zero(); 6];
+        let mut x = z;
+        for (x_i, d) in x.iter_mut().zip(self.diagonal.iter()) {
+            *x_i /= *d;
+        }
         for i in (0..6).rev() {
-            let d = self.diagonal.get(i).copied().unwrap_or_else(T::one);
-            let value =
-                z.get(i).copied().unwrap_or_else(T::zero) / d - dot6(&row(&self.upper, i), &x);
-            if let Some(slot) = x.get_mut(i) {
-                *slot = value;
+            let x_i = x.get(i).copied().unwrap_or_else(T::zero);
+            // x_k -= L_ik x_i for k < i (column i of L^T is row i of L).
+            let l_row = row(&self.lower, i);
+            for (x_k, &l_ik) in x.iter_mut().zip(l_row.iter()).take(i) {
+                *x_k -= l_ik * x_i;
             }
         }
         x

@@ -258,7 +258,7 @@ pub fn wrap_pi<T: RealField + Copy>(angle: T) -> T {
     if angle.is_finite() {
         wrapped
     } else {
-        angle - angle
+        angle * T::zero()
     }
 }
 

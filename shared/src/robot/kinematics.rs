@@ -135,8 +135,7 @@ impl<T: RealField + Copy> Puma560<T> {
         qd: &JointVector<T>,
     ) -> Vector6<T> {
         let zero = JointVector::zeros();
-        let motion = self.forward_motion(trig, qd, &zero, &Vector3::zeros());
-        let [.., flange] = motion;
+        let flange = self.flange_motion(trig, qd, &zero, &Vector3::zeros());
         let rotation = chain.base_from_flange_rotation();
         let linear = mul3(&rotation, &flange.linear_acceleration);
         let angular = mul3(&rotation, &flange.angular_acceleration);

@@ -26,6 +26,17 @@ pub struct LinkMotion<T> {
     pub linear_acceleration: Vector3<T>,
 }
 
+impl<T: RealField + Copy> LinkMotion<T> {
+    /// The base frame's motion: still, accelerating at `linear_acceleration`.
+    fn at_rest(linear_acceleration: &Vector3<T>) -> Self {
+        Self {
+            angular_velocity: Vector3::zeros(),
+            angular_acceleration: Vector3::zeros(),
+            linear_acceleration: *linear_acceleration,
+        }
+    }
+}
+
 impl<T: RealField + Copy> Puma560<T> {
     /// Outward recursion: velocities and accelerations of frames {1}..{6} from the base, which
     /// moves with linear acceleration `base_acceleration` (`-g` to fold gravity in).
@@ -40,47 +51,79 @@ impl<T: RealField + Copy> Puma560<T> {
         qdd: &JointVector<T>,
         base_acceleration: &Vector3<T>,
     ) -> [LinkMotion<T>; 6] {
+        let mut motion = [LinkMotion::at_rest(base_acceleration); 6];
+        self.outward(trig, qd, qdd, base_acceleration, |i, link_motion| {
+            if let Some(slot) = motion.get_mut(i) {
+                *slot = link_motion;
+            }
+        });
+        motion
+    }
+
+    /// The motion of frame {6} alone ([`Self::forward_motion`]'s last entry,
+    /// without keeping the others: `Jdot qd` needs only the flange).
+    pub fn flange_motion(
+        &self,
+        trig: &JointTrig<T>,
+        qd: &JointVector<T>,
+        qdd: &JointVector<T>,
+        base_acceleration: &Vector3<T>,
+    ) -> LinkMotion<T> {
+        self.outward(trig, qd, qdd, base_acceleration, |_, _| {})
+    }
+
+    /// The outward recursion, handing each link's motion to `visit` as it
+    /// is found (into the caller's storage: returning the six by value costs
+    /// a 216-byte copy a call on the firmware); returns the flange's.
+    #[inline(always)]
+    fn outward(
+        &self,
+        trig: &JointTrig<T>,
+        qd: &JointVector<T>,
+        qdd: &JointVector<T>,
+        base_acceleration: &Vector3<T>,
+        mut visit: impl FnMut(usize, LinkMotion<T>),
+    ) -> LinkMotion<T> {
         let qd_joints: [T; 6] = (*qd).into();
         let qdd_joints: [T; 6] = (*qdd).into();
-        let mut angular_velocity = Vector3::zeros();
-        let mut angular_acceleration = Vector3::zeros();
-        let mut linear_acceleration = *base_acceleration;
-        let mut motion = [LinkMotion {
-            angular_velocity,
-            angular_acceleration,
-            linear_acceleration,
-        }; 6];
-        let per_link = motion
-            .iter_mut()
-            .zip(self.dh.iter())
+        let mut current = LinkMotion::at_rest(base_acceleration);
+        let per_link = self
+            .dh
+            .iter()
             .zip(self.origins_in_child.iter())
             .zip(trig.joints.iter())
-            .zip(qd_joints.iter().zip(qdd_joints.iter()));
-        for ((((out, link), origin), joint_trig), (&rate, &accel)) in per_link {
-            let w_parent = angular_velocity;
+            .zip(qd_joints.iter().zip(qdd_joints.iter()))
+            .enumerate();
+        for (i, (((link, origin), joint_trig), (&rate, &accel))) in per_link {
+            let LinkMotion {
+                angular_velocity: w_parent,
+                angular_acceleration: wd_parent,
+                linear_acceleration: vd_parent,
+            } = current;
             let w_joint = Vector3::new(w_parent.x, w_parent.y, w_parent.z + rate);
             // w_{i-1} x (z qd_i) = qd_i (w_y, -w_x, 0)
             let wd_joint = Vector3::new(
-                angular_acceleration.x + w_parent.y * rate,
-                angular_acceleration.y - w_parent.x * rate,
-                angular_acceleration.z + accel,
+                wd_parent.x + w_parent.y * rate,
+                wd_parent.y - w_parent.x * rate,
+                wd_parent.z + accel,
             );
-            angular_velocity = link.to_child(joint_trig, &w_joint);
-            angular_acceleration = link.to_child(joint_trig, &wd_joint);
-            linear_acceleration = add3(
+            let angular_velocity = link.to_child(joint_trig, &w_joint);
+            let angular_acceleration = link.to_child(joint_trig, &wd_joint);
+            let linear_acceleration = add3(
                 &add3(
                     &cross3(&angular_acceleration, origin),
                     &cross3(&angular_velocity, &cross3(&angular_velocity, origin)),
                 ),
-                &link.to_child(joint_trig, &linear_acceleration),
+                &link.to_child(joint_trig, &vd_parent),
             );
-            *out = LinkMotion {
+            current = LinkMotion {
                 angular_velocity,
                 angular_acceleration,
                 linear_acceleration,
             };
+            visit(i, current);
         }
-        motion
+        current
     }
 
     /// Rigid-body RNEA with a chosen base acceleration; no armature, no friction.
@@ -96,7 +139,12 @@ impl<T: RealField + Copy> Puma560<T> {
         qdd: &JointVector<T>,
         base_acceleration: &Vector3<T>,
     ) -> JointVector<T> {
-        let motion = self.forward_motion(trig, qd, qdd, base_acceleration);
+        let mut motion = [LinkMotion::at_rest(base_acceleration); 6];
+        self.outward(trig, qd, qdd, base_acceleration, |i, link_motion| {
+            if let Some(slot) = motion.get_mut(i) {
+                *slot = link_motion;
+            }
+        });
         let mut tau = [T::zero(); 6];
         let mut force = Vector3::zeros();
         let mut moment = Vector3::zeros();
