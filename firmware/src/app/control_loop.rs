@@ -202,7 +202,12 @@ pub async fn control_loop(
             .wrapping_sub(started)
             .saturating_mul(cycles.scale());
         if !repeated {
-            stats::record_control(cost, cost > budget, controller.counters().late_results);
+            stats::record_control(
+                cost,
+                cost > budget,
+                controller.counters().late_results,
+                phase,
+            );
         }
     }
 }

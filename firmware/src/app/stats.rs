@@ -7,7 +7,7 @@ use core::cell::RefCell;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use critical_section::Mutex;
-use shared::protocol::{CostUnit, RuntimeReport};
+use shared::protocol::{CostUnit, PickPhase, RuntimeReport};
 
 /// Costs since the cell was configured.
 struct Costs {
@@ -18,6 +18,8 @@ struct Costs {
     job_worst: u32,
     deadline_misses: u32,
     late_results: u32,
+    worst_tick: u64,
+    worst_phase: PickPhase,
 }
 
 static COSTS: Mutex<RefCell<Costs>> = Mutex::new(RefCell::new(Costs {
@@ -28,6 +30,8 @@ static COSTS: Mutex<RefCell<Costs>> = Mutex::new(RefCell::new(Costs {
     job_worst: 0,
     deadline_misses: 0,
     late_results: 0,
+    worst_tick: 0,
+    worst_phase: PickPhase::Idle,
 }));
 
 /// Outgoing messages dropped (link queue full).
@@ -47,12 +51,17 @@ pub fn count_dropped_handoff() {
     HANDOFFS_DROPPED.fetch_add(1, Ordering::Relaxed);
 }
 
-/// One control period cost `cost` units; `missed` if it overran its deadline.
-pub fn record_control(cost: u32, missed: bool, late_results: u32) {
+/// One control period cost `cost` units; `missed` if it overran its deadline;
+/// `phase` is the pick's phase at its end.
+pub fn record_control(cost: u32, missed: bool, late_results: u32, phase: PickPhase) {
     critical_section::with(|cs| {
         let mut costs = COSTS.borrow_ref_mut(cs);
         costs.control_ticks = costs.control_ticks.saturating_add(1);
-        costs.control_worst = costs.control_worst.max(cost);
+        if cost > costs.control_worst {
+            costs.control_worst = cost;
+            costs.worst_tick = costs.control_ticks;
+            costs.worst_phase = phase;
+        }
         costs.control_sum = costs.control_sum.saturating_add(u64::from(cost));
         if missed {
             costs.deadline_misses = costs.deadline_misses.saturating_add(1);
@@ -84,6 +93,8 @@ pub fn reset_costs() {
         let mut costs = COSTS.borrow_ref_mut(cs);
         costs.control_worst = 0;
         costs.control_sum = 0;
+        costs.worst_tick = 0;
+        costs.worst_phase = PickPhase::Idle;
         costs.jobs_run = 0;
         costs.job_worst = 0;
         costs.late_results = 0;
@@ -114,6 +125,8 @@ pub fn report(unit: CostUnit) -> RuntimeReport {
             messages_dropped: MESSAGES_DROPPED.load(Ordering::Relaxed),
             handoffs_dropped: HANDOFFS_DROPPED.load(Ordering::Relaxed),
             late_results: costs.late_results,
+            control_worst_tick: costs.worst_tick,
+            control_worst_phase: costs.worst_phase,
         }
     })
 }

@@ -9,7 +9,9 @@
 //! The state is kept relative to a whole-count origin that moves with the disc,
 //! so the filter stays exact in `f32` however many turns the conveyor makes.
 
-use nalgebra::{convert, Matrix3, RealField, RowVector3, Vector3};
+use nalgebra::{convert, Matrix3, RealField, Vector3};
+
+use crate::kernels::{add3, all_finite, scale3};
 
 use super::{CounterWidth, EncoderUnwrapper, FusionError};
 
@@ -109,7 +111,9 @@ impl<T: RealField + Copy> ConveyorFilter<T> {
                 dt_s: (time_us as f64 - last as f64) * 1e-6,
             });
         }
-        let dt: T = convert((time_us - last) as f64 * 1e-6);
+        // Through T's own conversion from an integer, not f64 arithmetic
+        // (software on the M4F).
+        let dt = T::from_u64(time_us - last).unwrap_or_else(T::zero) * convert(1e-6);
         let (x, p) = self.predicted(dt);
         let z: T = convert((counts - self.origin_counts) as f64);
         let z = z * self.rad_per_count;
@@ -129,11 +133,24 @@ impl<T: RealField + Copy> ConveyorFilter<T> {
                 gate_rad: gate.to_subset().unwrap_or(f64::NAN),
             });
         }
-        let gain = p.column(0) / s;
-        let x = x + gain * innovation;
-        let p = p - gain * RowVector3::new(p.m11, p.m12, p.m13);
-        let p = (p + p.transpose()) * convert::<f64, T>(0.5);
-        if !(x.iter().all(|v| v.is_finite()) && p.iter().all(|v| v.is_finite())) {
+        // The Kalman update written out (every period on the M4F, where
+        // nalgebra's element loops are not unrolled); the same operations in
+        // the same order as `x + K e`, `P - K P_row0`, `(P + P^T) / 2`.
+        let gain = Vector3::new(p.m11 / s, p.m21 / s, p.m31 / s);
+        let x = add3(&x, &scale3(&gain, innovation));
+        let row0 = [p.m11, p.m12, p.m13];
+        let updated = Matrix3::from_fn(|i, j| {
+            let g = gain.get(i).copied().unwrap_or_else(T::zero);
+            let r = row0.get(j).copied().unwrap_or_else(T::zero);
+            p.get((i, j)).copied().unwrap_or_else(T::zero) - g * r
+        });
+        let half: T = convert(0.5);
+        let p = Matrix3::from_fn(|i, j| {
+            let upper = updated.get((i, j)).copied().unwrap_or_else(T::zero);
+            let lower = updated.get((j, i)).copied().unwrap_or_else(T::zero);
+            (upper + lower) * half
+        });
+        if !(all_finite(&x) && all_finite(&p)) {
             return Err(FusionError::NonFinite {
                 what: "conveyor filter state",
             });

@@ -239,6 +239,10 @@ pub struct RuntimeReport {
     pub handoffs_dropped: u32,
     /// Job results that arrived after their due time.
     pub late_results: u32,
+    /// The worst control period: its index among `control_ticks` and the
+    /// pick's phase at its end (where to look for the cost).
+    pub control_worst_tick: u64,
+    pub control_worst_phase: PickPhase,
 }
 
 impl RuntimeReport {
@@ -258,6 +262,8 @@ impl RuntimeReport {
             messages_dropped: 0,
             handoffs_dropped: 0,
             late_results: 0,
+            control_worst_tick: 0,
+            control_worst_phase: PickPhase::Idle,
         }
     }
 }

@@ -173,6 +173,8 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 messages_dropped: v[7],
                 handoffs_dropped: v[8],
                 late_results: v[9],
+                control_worst_tick: 1234,
+                control_worst_phase: PickPhase::Track,
             })
         }),
     ]
