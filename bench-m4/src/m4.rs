@@ -9,7 +9,7 @@ use shared::control::{
     orientation_error, solve_damped, CircleTrajectory, ControllerConfig, DampingConfig, Joints,
     TaskReference, TaskSpaceController, TaskSpaceModel,
 };
-use shared::planning::{solve_ik, IkConfig};
+use shared::planning::{solve_ik, ArcLimits, ArcMove, ArcPoint, IkConfig};
 use shared::robot::drive::SIMULATOR_COULOMB_WIDTH;
 use shared::robot::{DriveOptions, Puma560};
 
@@ -296,6 +296,28 @@ fn pick_tick(timer: &timer::DualTimer, model: &Puma560<f32>, q: &Joints<f32>) {
     if option_env!("BENCH_M4_ONLY").is_some() {
         return;
     }
+    // What a phase change adds to its period: planning the next arc.
+    let from = ArcPoint {
+        radius_m: 0.55_f32,
+        azimuth_rad: 0.3,
+        z_m: 0.45,
+        yaw_rad: 0.1,
+    };
+    let to = ArcPoint {
+        radius_m: 0.62_f32,
+        azimuth_rad: -0.4,
+        z_m: 0.3,
+        yaw_rad: -0.2,
+    };
+    hprintln!(
+        "  arc plan (ArcMove::new)         {:>6}",
+        timer.measure(CALLS, || ArcMove::new(
+            black_box(&from),
+            black_box(&to),
+            &ArcLimits::default()
+        )
+        .is_ok())
+    );
     hprintln!(
         "  forward kinematics (f32)        {:>6}",
         timer.measure(CALLS, || model.forward_kinematics(black_box(q)))

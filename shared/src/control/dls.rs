@@ -75,25 +75,30 @@ pub fn solve_damped<T: RealField + Copy>(
     // instructions on the M4F (bench-m4).
     let rows = rows6(jacobian);
     let jjt = gram(&rows);
-    let undamped = Factor::new(&jjt);
-    let manipulability = match &undamped {
-        Some(factor) => factor.determinant().sqrt(),
-        None => T::zero(),
+    // Factorised in place: returning a factor by value costs copies on the
+    // M4F that are as dear as the arithmetic.
+    let mut lower = jjt;
+    let mut diagonal = [T::zero(); 6];
+    let undamped = factor_in_place(&mut lower, &mut diagonal);
+    let manipulability = if undamped {
+        let [d0, d1, d2, d3, d4, d5] = diagonal;
+        (d0 * d1 * d2 * d3 * d4 * d5).sqrt()
+    } else {
+        T::zero()
     };
     let damping_squared = config.damping_squared(manipulability);
-    let factor = match undamped {
-        Some(factor) if damping_squared == T::zero() => factor,
-        _ => {
-            let mut damped = jjt;
-            for (i, row) in damped.iter_mut().enumerate() {
-                if let Some(d) = row.get_mut(i) {
-                    *d += damping_squared;
-                }
+    if !undamped || damping_squared != T::zero() {
+        lower = jjt;
+        for (i, row) in lower.iter_mut().enumerate() {
+            if let Some(d) = row.get_mut(i) {
+                *d += damping_squared;
             }
-            Factor::new(&damped).ok_or(ControlError::SolveFailed)?
         }
-    };
-    let y = factor.solve(&(*b).into());
+        if !factor_in_place(&mut lower, &mut diagonal) {
+            return Err(ControlError::SolveFailed);
+        }
+    }
+    let y = solve_factored(&lower, &diagonal, &(*b).into());
     // x = J^T y: element c is column c of J dotted with y.
     let columns: [[T; 6]; 6] = (*jacobian).into();
     let [c0, c1, c2, c3, c4, c5] = columns;
@@ -134,19 +139,6 @@ fn gram<T: RealField + Copy>(rows: &[[T; 6]; 6]) -> [[T; 6]; 6] {
     ]
 }
 
-/// `A = L D L^T` of a symmetric positive-definite 6x6: `L` unit lower
-/// triangular (stored without its diagonal, zeros elsewhere), `D` diagonal.
-/// No square roots: `det A = prod D_i`.
-struct Factor<T> {
-    /// Strictly lower part of `L`, row-major.
-    lower: [[T; 6]; 6],
-    diagonal: [T; 6],
-}
-
-fn row<T: RealField + Copy>(m: &[[T; 6]; 6], i: usize) -> [T; 6] {
-    m.get(i).copied().unwrap_or([T::zero(); 6])
-}
-
 /// `sum_k a_k d_k b_k`.
 #[inline(always)]
 fn weighted_dot6<T: RealField + Copy>(a: &[T; 6], d: &[T; 6], b: &[T; 6]) -> T {
@@ -156,66 +148,68 @@ fn weighted_dot6<T: RealField + Copy>(a: &[T; 6], d: &[T; 6], b: &[T; 6]) -> T {
     a0 * d0 * b0 + a1 * d1 * b1 + a2 * d2 * b2 + a3 * d3 * b3 + a4 * d4 * b4 + a5 * d5 * b5
 }
 
-impl<T: RealField + Copy> Factor<T> {
-    /// `None` unless every pivot `D_i` is finite and positive.
-    ///
-    /// Row `i` of `L` is filled left to right; its entries from `j` on are
-    /// still zero when `L_ij` is computed, and `D_k` is zero for `k >= i`, so
-    /// full six-term weighted dot products sum exactly the recursion's terms
-    /// `sum_{k<j} L_ik D_k L_jk`.
-    fn new(a: &[[T; 6]; 6]) -> Option<Self> {
-        let mut lower = [[T::zero(); 6]; 6];
-        let mut diagonal = [T::zero(); 6];
-        for (i, a_row) in a.iter().enumerate() {
-            let mut l_row = [T::zero(); 6];
-            for (j, (&a_ij, l_j)) in a_row.iter().zip(lower.iter()).enumerate().take(i) {
-                let d_j = diagonal.get(j).copied().unwrap_or_else(T::one);
-                let value = (a_ij - weighted_dot6(&l_row, &diagonal, l_j)) / d_j;
-                *l_row.get_mut(j)? = value;
-            }
-            let pivot = a_row.get(i).copied().unwrap_or_else(T::zero)
-                - weighted_dot6(&l_row, &diagonal, &l_row);
-            if !(pivot.is_finite() && pivot > T::zero()) {
-                return None;
-            }
-            *diagonal.get_mut(i)? = pivot;
-            *lower.get_mut(i)? = l_row;
-        }
-        Some(Self { lower, diagonal })
-    }
-
-    fn determinant(&self) -> T {
-        let [d0, d1, d2, d3, d4, d5] = self.diagonal;
-        d0 * d1 * d2 * d3 * d4 * d5
-    }
-
-    /// `A^-1 b`: `L z = b`, `y = D^-1 z`, `L^T x = y`. `L z = b` solves into
-    /// a vector whose unsolved entries are still zero, so a full dot product
-    /// with the zero-padded row sums only the solved ones; `L^T x = y` runs
-    /// down the columns of `L` as rows, subtracting each solved `x_i` from
-    /// the rest.
-    fn solve(&self, b: &[T; 6]) -> [T; 6] {
-        let mut z = [T::zero(); 6];
-        for (i, l_row) in self.lower.iter().enumerate() {
-            let value = b.get(i).copied().unwrap_or_else(T::zero) - dot6(l_row, &z);
-            if let Some(slot) = z.get_mut(i) {
+/// `A = L D L^T` of a symmetric positive-definite 6x6, in place: `a`'s lower
+/// triangle in, `L`'s strictly lower part out (zeros on and above the
+/// diagonal), `D` into `diagonal`. No square roots: `det A = prod D_i`.
+/// False (with `a` spoilt) unless every pivot is finite and positive.
+///
+/// Row `i` of `L` is built in a zeroed row, left to right, and `D_k` is zero
+/// for `k >= i`, so full six-term weighted dot products sum exactly the
+/// recursion's terms `sum_{k<j} L_ik D_k L_jk`.
+fn factor_in_place<T: RealField + Copy>(a: &mut [[T; 6]; 6], diagonal: &mut [T; 6]) -> bool {
+    *diagonal = [T::zero(); 6];
+    for i in 0..6 {
+        let Some(&a_row) = a.get(i) else {
+            return false;
+        };
+        let mut l_row = [T::zero(); 6];
+        for (j, (&a_ij, l_j)) in a_row.iter().zip(a.iter()).enumerate().take(i) {
+            let d_j = diagonal.get(j).copied().unwrap_or_else(T::one);
+            let value = (a_ij - weighted_dot6(&l_row, diagonal, l_j)) / d_j;
+            if let Some(slot) = l_row.get_mut(j) {
                 *slot = value;
             }
         }
-        let mut x = z;
-        for (x_i, d) in x.iter_mut().zip(self.diagonal.iter()) {
-            *x_i /= *d;
+        let pivot =
+            a_row.get(i).copied().unwrap_or_else(T::zero) - weighted_dot6(&l_row, diagonal, &l_row);
+        if !(pivot.is_finite() && pivot > T::zero()) {
+            return false;
         }
-        for i in (0..6).rev() {
-            let x_i = x.get(i).copied().unwrap_or_else(T::zero);
-            // x_k -= L_ik x_i for k < i (column i of L^T is row i of L).
-            let l_row = row(&self.lower, i);
-            for (x_k, &l_ik) in x.iter_mut().zip(l_row.iter()).take(i) {
-                *x_k -= l_ik * x_i;
-            }
+        if let (Some(d), Some(row)) = (diagonal.get_mut(i), a.get_mut(i)) {
+            *d = pivot;
+            *row = l_row;
         }
-        x
     }
+    true
+}
+
+/// `A^-1 b` from [`factor_in_place`]'s `L` and `D`: `L z = b`, `y = D^-1 z`,
+/// `L^T x = y`. `L z = b` solves into a vector whose unsolved entries are
+/// still zero, so a full dot product with the zero-padded row sums only the
+/// solved ones; `L^T x = y` runs up the rows of `L`, subtracting each solved
+/// `x_i` from the entries before it.
+fn solve_factored<T: RealField + Copy>(
+    lower: &[[T; 6]; 6],
+    diagonal: &[T; 6],
+    b: &[T; 6],
+) -> [T; 6] {
+    let mut x = [T::zero(); 6];
+    for (i, l_row) in lower.iter().enumerate() {
+        let value = b.get(i).copied().unwrap_or_else(T::zero) - dot6(l_row, &x);
+        if let Some(slot) = x.get_mut(i) {
+            *slot = value;
+        }
+    }
+    for (x_i, d) in x.iter_mut().zip(diagonal.iter()) {
+        *x_i /= *d;
+    }
+    for (i, l_row) in lower.iter().enumerate().rev() {
+        let x_i = x.get(i).copied().unwrap_or_else(T::zero);
+        for (x_k, &l_ik) in x.iter_mut().zip(l_row.iter()).take(i) {
+            *x_k -= l_ik * x_i;
+        }
+    }
+    x
 }
 
 #[cfg(test)]

@@ -24,10 +24,29 @@ pub struct ConveyorState<T> {
     pub omega: T,
     /// d^2 theta / dt^2, rad/s^2.
     pub alpha: T,
-    /// One-sigma uncertainties of theta, omega, alpha.
-    pub sigma_theta: T,
-    pub sigma_omega: T,
-    pub sigma_alpha: T,
+    /// Variances of theta, omega, alpha (the filter's covariance diagonal;
+    /// the one-sigma values are methods: the control period does not need
+    /// their square roots, telemetry does).
+    pub variance_theta: T,
+    pub variance_omega: T,
+    pub variance_alpha: T,
+}
+
+impl<T: RealField + Copy> ConveyorState<T> {
+    /// One-sigma uncertainty of theta (rad).
+    pub fn sigma_theta(&self) -> T {
+        self.variance_theta.sqrt()
+    }
+
+    /// One-sigma uncertainty of omega (rad/s).
+    pub fn sigma_omega(&self) -> T {
+        self.variance_omega.sqrt()
+    }
+
+    /// One-sigma uncertainty of alpha (rad/s^2).
+    pub fn sigma_alpha(&self) -> T {
+        self.variance_alpha.sqrt()
+    }
 }
 
 /// Kalman filter on the unwrapped conveyor angle.
@@ -243,9 +262,9 @@ impl<T: RealField + Copy> ConveyorFilter<T> {
             theta_wrapped: theta,
             omega: x.y,
             alpha: x.z,
-            sigma_theta: p.m11.max(T::zero()).sqrt(),
-            sigma_omega: p.m22.max(T::zero()).sqrt(),
-            sigma_alpha: p.m33.max(T::zero()).sqrt(),
+            variance_theta: p.m11.max(T::zero()),
+            variance_omega: p.m22.max(T::zero()),
+            variance_alpha: p.m33.max(T::zero()),
         }
     }
 }

@@ -52,9 +52,12 @@ impl JointBrake {
             });
             let damping = DAMPING_NM_S.get(j).copied().unwrap_or(0.0) * at(qd);
             let value = at(&gravity) + spring - damping;
+            // Not `clamp`: it panics on a NaN or negative limit. A limit that
+            // is not a finite number allows no torque.
             let max = at(&limits.torque_max);
+            let max = if max.is_finite() { max.abs() } else { 0.0 };
             *slot = if value.is_finite() {
-                value.clamp(-max, max)
+                value.max(-max).min(max)
             } else {
                 0.0
             };

@@ -1271,8 +1271,8 @@ impl PickController {
             fault: self.fault,
             theta_rad: state.map_or(0.0, |s| s.theta_wrapped),
             omega_rad_s: state.map_or(0.0, |s| s.omega),
-            sigma_theta_rad: state.map_or(0.0, |s| s.sigma_theta),
-            sigma_omega_rad_s: state.map_or(0.0, |s| s.sigma_omega),
+            sigma_theta_rad: state.map_or(0.0, |s| s.sigma_theta()),
+            sigma_omega_rad_s: state.map_or(0.0, |s| s.sigma_omega()),
             part_base_m: part.map(|p| [p.position.x, p.position.y, p.position.z]),
             part_yaw_base_rad: part.map_or(0.0, |p| p.yaw),
             part_velocity_base_m_s: part
