@@ -32,7 +32,8 @@ use crate::observation::{
 /// counters), a little less on thumbv7em where `usize` is 4 B. Measured by the test
 /// `calibrator_sizes_are_documented`: [`FirmwareCalibrator`] 11 112 B, [`HostCalibrator`]
 /// 117 224 B. [`SelfCalibrator::estimate`] additionally needs stack for the refinement's
-/// 34x34 normal equations (a few copies of 9.2 KiB), independent of the instance size.
+/// arrowhead normal equations (2.8 KiB of blocks, see [`super::normal_blocks`]),
+/// independent of the instance size.
 #[derive(Debug, Clone)]
 pub struct SelfCalibrator<const FRAMES: usize, const EFFECTOR_FRAMES: usize> {
     header: LogHeader,
@@ -327,9 +328,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         let uncertainty = refined
             .covariance
             .as_ref()
-            .map(|covariance| {
-                EstimateUncertainty::from_covariance(covariance, self.header.part_feature_count)
-            })
+            .map(EstimateUncertainty::from_covariance)
             .ok_or(CalibrationError::NumericalFailure {
                 stage: "covariance of the estimate",
             })?;

@@ -25,17 +25,21 @@
 //! - [`effector`]: Eqs 10 to 15, end-effector depths and `base_from_disc`.
 //! - [`model`], [`pinhole`]: the workcell model and the contract's camera.
 //! - [`refine`]: robust Levenberg-Marquardt bundle adjustment (maximum likelihood).
+//! - [`normal_blocks`]: its arrowhead normal equations, solved by the Schur complement.
+//! - [`cholesky`]: the in-place Cholesky factorisation those solves use.
 //! - [`uncertainty`]: standard deviations of the refined estimate.
 //! - [`store`], [`records`]: bounded, thinned storage of observations (f32 pixels).
 //! - [`calibrator`]: [`SelfCalibrator`], the incremental estimator tying it together.
 
 pub mod calibrator;
+pub mod cholesky;
 pub mod config;
 pub mod conic;
 pub mod effector;
 pub mod error;
 pub mod homography;
 pub mod model;
+pub mod normal_blocks;
 pub mod part;
 pub mod pinhole;
 pub mod records;

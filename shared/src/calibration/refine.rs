@@ -5,21 +5,16 @@
 //!
 //! With Gaussian pixel noise this is the maximum-likelihood estimate; gross outliers are
 //! handled by a Huber loss (phase 1) and then a hard gate on the residual at
-//! `outlier_gate_sigma` robust sigmas (phase 2). Memory is fixed: the normal equations
-//! are one `PARAMETERS x PARAMETERS` matrix whatever the number of frames.
-
-use nalgebra::{SMatrix, Vector2};
+//! `outlier_gate_sigma` robust sigmas (phase 2). Memory is fixed whatever the number of
+//! frames: the normal equations are kept as the arrowhead's blocks and solved by the
+//! Schur complement ([`super::normal_blocks`]), 2.8 KiB instead of a dense 34x34 matrix.
 
 use super::config::CalibrationConfig;
 use super::error::CalibrationError;
-use super::model::{
-    for_each_observation, OtherBlock, WorkcellModel, BASE_OFFSET, FEATURE_OFFSET, PARAMETERS,
-};
+use super::model::{for_each_observation, WorkcellModel};
+use super::normal_blocks::{Freedom, MarginalCovariance, NormalBlocks};
 use super::pinhole::Pinhole;
 use super::records::{EffectorRecord, FrameRecord};
-
-type Normal = SMatrix<f64, PARAMETERS, PARAMETERS>;
-type Gradient = SMatrix<f64, PARAMETERS, 1>;
 
 /// What the refinement sees: stored observations and how to treat them.
 #[derive(Clone, Copy)]
@@ -78,8 +73,9 @@ pub struct Refined {
     pub rms_px: f64,
     /// Points beyond the gate.
     pub outliers: u32,
-    /// Inverse of the Gauss-Newton information matrix scaled by sigma^2: parameter covariance.
-    pub covariance: Option<Normal>,
+    /// Inverse of the Gauss-Newton information matrix scaled by sigma^2: the parameter
+    /// covariance of the camera, the base and the part position.
+    pub covariance: Option<MarginalCovariance>,
 }
 
 fn total_cost(problem: &Problem<'_>, model: &WorkcellModel, loss: &Loss) -> f64 {
@@ -100,18 +96,16 @@ fn total_cost(problem: &Problem<'_>, model: &WorkcellModel, loss: &Loss) -> f64 
     cost
 }
 
-/// The Gauss-Newton normal equations at `model`, written into the caller's
-/// `normal` and `gradient` (9 KiB a matrix: filled in place rather than
-/// returned, so a firmware stack does not hold a second copy).
+/// The Gauss-Newton normal equations at `model`, in arrowhead blocks written into the
+/// caller's `blocks` (filled in place rather than returned: no second copy on a
+/// firmware stack).
 fn normal_equations(
     problem: &Problem<'_>,
     model: &WorkcellModel,
     loss: &Loss,
-    normal: &mut Normal,
-    gradient: &mut Gradient,
+    blocks: &mut NormalBlocks,
 ) {
-    normal.fill(0.0);
-    gradient.fill(0.0);
+    *blocks = NormalBlocks::zeros();
     for_each_observation(
         problem.frames,
         problem.effectors,
@@ -127,118 +121,19 @@ fn normal_equations(
             if weight == 0.0 {
                 return;
             }
-            accumulate(
-                normal,
-                gradient,
-                &jacobian.camera,
-                &jacobian.other,
-                &residual,
-                weight,
-            );
+            blocks.accumulate(&jacobian.camera, &jacobian.other, &residual, weight);
         },
     );
 }
 
-fn accumulate(
-    normal: &mut Normal,
-    gradient: &mut Gradient,
-    camera: &SMatrix<f64, 2, 6>,
-    other: &OtherBlock,
-    residual: &Vector2<f64>,
-    weight: f64,
-) {
-    let camera_t = camera.transpose() * weight;
-    let mut cc = normal.fixed_view_mut::<6, 6>(0, 0);
-    cc += camera_t * camera;
-    let mut gc = gradient.fixed_view_mut::<6, 1>(0, 0);
-    gc += camera_t * residual;
-    let (offset, block): (usize, SMatrix<f64, 2, 4>) = match *other {
-        OtherBlock::None => return,
-        OtherBlock::Feature { index, jacobian } => {
-            if index >= crate::observation::MAX_PART_FEATURES {
-                return;
-            }
-            let mut padded = SMatrix::<f64, 2, 4>::zeros();
-            padded.fixed_view_mut::<2, 3>(0, 0).copy_from(&jacobian);
-            // The 4th column is zero, so spilling into the next slot adds nothing.
-            (FEATURE_OFFSET + 3 * index, padded)
-        }
-        OtherBlock::Base(block) => (BASE_OFFSET, block),
-    };
-    let block_t = block.transpose() * weight;
-    let cross = camera_t * block;
-    let mut co = normal.fixed_view_mut::<6, 4>(0, offset);
-    co += cross;
-    let mut oc = normal.fixed_view_mut::<4, 6>(offset, 0);
-    oc += cross.transpose();
-    let mut oo = normal.fixed_view_mut::<4, 4>(offset, offset);
-    oo += block_t * block;
-    let mut go = gradient.fixed_view_mut::<4, 1>(offset, 0);
-    go += block_t * residual;
-}
-
-/// Solves `a x = b` for a symmetric positive-definite `a` by Cholesky, in
-/// place: `a`'s lower triangle becomes the factor L (a = L L^T) and `b`
-/// becomes x. False, with `a` and `b` spoilt, when `a` is not positive
-/// definite (a pivot not above zero, or not finite).
-fn cholesky_solve_in_place(a: &mut Normal, b: &mut Gradient) -> bool {
-    let n = PARAMETERS;
-    let at = |a: &Normal, i: usize, j: usize| a.get((i, j)).copied().unwrap_or(0.0);
-    for j in 0..n {
-        let mut pivot = at(a, j, j);
-        for k in 0..j {
-            let l = at(a, j, k);
-            pivot -= l * l;
-        }
-        if !(pivot.is_finite() && pivot > 0.0) {
-            return false;
-        }
-        let diagonal = libm::sqrt(pivot);
-        if let Some(e) = a.get_mut((j, j)) {
-            *e = diagonal;
-        }
-        for i in (j + 1)..n {
-            let mut value = at(a, i, j);
-            for k in 0..j {
-                value -= at(a, i, k) * at(a, j, k);
-            }
-            if let Some(e) = a.get_mut((i, j)) {
-                *e = value / diagonal;
-            }
-        }
+/// What the data can move: unused feature slots, the base without sightings and a
+/// known base height are held.
+fn freedom(problem: &Problem<'_>) -> Freedom {
+    let base = !problem.effectors.is_empty();
+    Freedom {
+        feature_count: problem.feature_count,
+        base_free: [base, base, base, base && !problem.fix_base_height],
     }
-    // L y = b, then L^T x = y.
-    for i in 0..n {
-        let mut value = b.get(i).copied().unwrap_or(0.0);
-        for k in 0..i {
-            value -= at(a, i, k) * b.get(k).copied().unwrap_or(0.0);
-        }
-        if let Some(e) = b.get_mut(i) {
-            *e = value / at(a, i, i);
-        }
-    }
-    for i in (0..n).rev() {
-        let mut value = b.get(i).copied().unwrap_or(0.0);
-        for k in (i + 1)..n {
-            value -= at(a, k, i) * b.get(k).copied().unwrap_or(0.0);
-        }
-        if let Some(e) = b.get_mut(i) {
-            *e = value / at(a, i, i);
-        }
-    }
-    true
-}
-
-/// Parameters the data cannot move: unused feature slots, base (no sightings), base z.
-fn frozen(problem: &Problem<'_>, index: usize) -> bool {
-    if (FEATURE_OFFSET..BASE_OFFSET).contains(&index) {
-        return (index - FEATURE_OFFSET) / 3 >= problem.feature_count;
-    }
-    if index >= BASE_OFFSET {
-        return problem.effectors.is_empty()
-            || (problem.fix_base_height && index == BASE_OFFSET + 3);
-    }
-    false
 }
 
 /// Levenberg-Marquardt on one loss; returns the improved model.
@@ -251,52 +146,16 @@ fn minimise(
     let mut model = start;
     let mut cost = total_cost(problem, &model, loss);
     let mut damping = 1e-4;
-    // One damped copy for every try, factorised in place: a firmware stack
-    // holds the normal matrix and this one (9 KiB each), not also a factor.
-    let mut damped = Normal::zeros();
-    let mut normal = Normal::zeros();
-    let mut gradient = Gradient::zeros();
+    let freedom = freedom(problem);
+    let mut blocks = NormalBlocks::zeros();
     for _ in 0..max_iterations {
-        normal_equations(problem, &model, loss, &mut normal, &mut gradient);
+        normal_equations(problem, &model, loss, &mut blocks);
         let mut improved = false;
         while damping < 1e10 {
-            damped.copy_from(&normal);
-            for i in 0..PARAMETERS {
-                let diagonal = damped.get((i, i)).copied().unwrap_or(0.0);
-                let value = if frozen(problem, i) {
-                    1.0
-                } else {
-                    diagonal * (1.0 + damping) + 1e-12
-                };
-                if let Some(entry) = damped.get_mut((i, i)) {
-                    *entry = value;
-                }
-                if frozen(problem, i) {
-                    for j in 0..PARAMETERS {
-                        if j != i {
-                            if let Some(e) = damped.get_mut((i, j)) {
-                                *e = 0.0;
-                            }
-                            if let Some(e) = damped.get_mut((j, i)) {
-                                *e = 0.0;
-                            }
-                        }
-                    }
-                }
-            }
-            let mut rhs = -gradient;
-            for i in 0..PARAMETERS {
-                if frozen(problem, i) {
-                    if let Some(e) = rhs.get_mut(i) {
-                        *e = 0.0;
-                    }
-                }
-            }
-            let mut step = rhs;
-            if !cholesky_solve_in_place(&mut damped, &mut step) {
+            let Some(step) = blocks.damped_step(&freedom, damping) else {
                 damping *= 10.0;
                 continue;
-            }
+            };
             if !step.iter().all(|v| v.is_finite()) {
                 return Err(CalibrationError::NumericalFailure {
                     stage: "bundle adjustment step",
@@ -371,9 +230,9 @@ struct Fit {
 
 /// Runs both phases and reports the fit.
 ///
-/// The two halves are separate, never-inlined functions so that their large
-/// locals (each `PARAMETERS x PARAMETERS` matrix is 9 KiB) are never on the
-/// stack at the same time: on the firmware the estimate runs in 128 KiB.
+/// The two halves are separate, never-inlined functions so that their working
+/// sets (each holds its own 2.8 KiB [`NormalBlocks`]) are never on the stack at
+/// the same time (the firmware's RAM budget).
 #[inline(never)]
 pub fn refine(
     problem: &Problem<'_>,
@@ -440,87 +299,22 @@ fn fit(
     })
 }
 
-/// Covariance of the Gauss-Newton fit at the optimum, with the measured noise level.
+/// Covariance of the Gauss-Newton fit at the optimum, with the measured noise level:
+/// the inverse of the undamped information `J^T J` (unit weights inside the gate)
+/// times the per-axis pixel variance `rms^2 / 2`, as far as the uncertainty reads it.
 #[inline(never)]
 fn covariance_at(
     problem: &Problem<'_>,
     model: &WorkcellModel,
     gate: f64,
     rms_px: f64,
-) -> Option<Normal> {
+) -> Option<MarginalCovariance> {
     let unit = Loss {
         huber_px: f64::INFINITY,
         gate_px: Some(gate),
     };
-    let mut normal = Normal::zeros();
-    let mut gradient = Gradient::zeros();
-    normal_equations(problem, model, &unit, &mut normal, &mut gradient);
-    for i in 0..PARAMETERS {
-        if frozen(problem, i) {
-            for j in 0..PARAMETERS {
-                let value = if i == j { 1.0 } else { 0.0 };
-                if let Some(e) = normal.get_mut((i, j)) {
-                    *e = value;
-                }
-                if let Some(e) = normal.get_mut((j, i)) {
-                    *e = value;
-                }
-            }
-        }
-    }
+    let mut blocks = NormalBlocks::zeros();
+    normal_equations(problem, model, &unit, &mut blocks);
     let variance = (rms_px * rms_px / 2.0).max(1e-30);
-    if !normal.try_inverse_mut() {
-        return None;
-    }
-    normal *= variance;
-    // Frozen parameters are known exactly.
-    for i in 0..PARAMETERS {
-        if frozen(problem, i) {
-            if let Some(e) = normal.get_mut((i, i)) {
-                *e = 0.0;
-            }
-        }
-    }
-    Some(normal)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A symmetric positive-definite matrix of the normal equations' size.
-    fn spd(seed: u64) -> Normal {
-        let mut state = seed;
-        let m = Normal::from_fn(|_, _| crate::test_rng::splitmix(&mut state) - 0.5);
-        m * m.transpose() + Normal::identity() * 0.1
-    }
-
-    #[test]
-    fn the_in_place_solve_agrees_with_nalgebras_cholesky() {
-        for seed in 1..20 {
-            let a = spd(seed);
-            let b = Gradient::from_fn(|i, _| (i as f64 * 0.37).sin());
-            let expected = nalgebra::Cholesky::new(a).unwrap().solve(&b);
-            let (mut factor, mut x) = (a, b);
-            assert!(cholesky_solve_in_place(&mut factor, &mut x));
-            let scale = expected.norm();
-            assert!((x - expected).norm() <= 1e-9 * scale, "seed {seed}");
-            assert!((a * x - b).norm() <= 1e-9 * b.norm() * a.norm());
-        }
-    }
-
-    #[test]
-    fn a_matrix_that_is_not_positive_definite_is_refused() {
-        let mut a = spd(3);
-        if let Some(e) = a.get_mut((5, 5)) {
-            *e = -1.0;
-        }
-        let mut b = Gradient::zeros();
-        assert!(!cholesky_solve_in_place(&mut a, &mut b));
-        let mut nan = spd(4);
-        if let Some(e) = nan.get_mut((0, 0)) {
-            *e = f64::NAN;
-        }
-        assert!(!cholesky_solve_in_place(&mut nan, &mut b));
-    }
+    blocks.covariance(&freedom(problem), variance)
 }

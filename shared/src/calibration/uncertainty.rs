@@ -1,11 +1,9 @@
 //! Standard deviations of the refined estimate, read off the parameter covariance of the
-//! bundle adjustment (the inverse Gauss-Newton information times the pixel variance).
-//! They let a caller judge whether a calibration is good enough before trusting it.
+//! bundle adjustment (the inverse Gauss-Newton information times the pixel variance, as
+//! [`super::normal_blocks::MarginalCovariance`] keeps it). They let a caller judge
+//! whether a calibration is good enough before trusting it.
 
-use nalgebra::{SMatrix, Vector3};
-
-use super::model::{BASE_OFFSET, FEATURE_OFFSET, PARAMETERS};
-use crate::observation::MAX_PART_FEATURES;
+use super::normal_blocks::{ArrowMatrix, MarginalCovariance, CAMERA_PARAMETERS};
 
 /// One-sigma uncertainties of the refined estimate (metres, radians); serialised
 /// beside the calibration result as `uncertainty_1sigma`.
@@ -25,7 +23,8 @@ pub struct EstimateUncertainty {
     pub base_translation_m: [f64; 3],
 }
 
-fn sigma(covariance: &SMatrix<f64, PARAMETERS, PARAMETERS>, index: usize) -> f64 {
+/// Square root of a variance on the diagonal (0 for a negative rounding residue).
+fn sigma<const N: usize>(covariance: &nalgebra::SMatrix<f64, N, N>, index: usize) -> f64 {
     libm::sqrt(
         covariance
             .get((index, index))
@@ -36,36 +35,24 @@ fn sigma(covariance: &SMatrix<f64, PARAMETERS, PARAMETERS>, index: usize) -> f64
 }
 
 impl EstimateUncertainty {
-    pub fn from_covariance(
-        covariance: &SMatrix<f64, PARAMETERS, PARAMETERS>,
-        feature_count: usize,
-    ) -> Self {
+    pub fn from_covariance(covariance: &MarginalCovariance) -> Self {
+        let arrow: &ArrowMatrix = &covariance.camera_and_base;
         let axis = |offset: usize| {
             [
-                sigma(covariance, offset),
-                sigma(covariance, offset + 1),
-                sigma(covariance, offset + 2),
+                sigma(arrow, offset),
+                sigma(arrow, offset + 1),
+                sigma(arrow, offset + 2),
             ]
         };
-        // The part position is the mean of the features: its covariance is
-        // (1/n^2) sum_ij C(f_i, f_j), 3x3 blocks of the feature covariance.
-        let count = feature_count.clamp(1, MAX_PART_FEATURES);
-        let mut part = SMatrix::<f64, 3, 3>::zeros();
-        for i in 0..count {
-            for j in 0..count {
-                part +=
-                    covariance.fixed_view::<3, 3>(FEATURE_OFFSET + 3 * i, FEATURE_OFFSET + 3 * j);
-            }
-        }
-        part /= (count * count) as f64;
-        let diagonal: Vector3<f64> = part.diagonal().map(|v| libm::sqrt(v.max(0.0)));
+        let part = &covariance.part_position;
+        let base = CAMERA_PARAMETERS;
         Self {
-            camera_height_m: sigma(covariance, 5),
+            camera_height_m: sigma(arrow, 5),
             camera_position_m: axis(3),
             camera_rotation_rad: axis(0),
-            part_position_m: [diagonal.x, diagonal.y, diagonal.z],
-            base_yaw_rad: sigma(covariance, BASE_OFFSET),
-            base_translation_m: axis(BASE_OFFSET + 1),
+            part_position_m: [sigma(part, 0), sigma(part, 1), sigma(part, 2)],
+            base_yaw_rad: sigma(arrow, base),
+            base_translation_m: axis(base + 1),
         }
     }
 }

@@ -1,0 +1,544 @@
+//! The bundle adjustment's Gauss-Newton normal equations in arrowhead form, and their
+//! solution by the Schur complement (beyond the paper, which has no joint refinement).
+//!
+//! Why arrowhead: a feature point's image depends on the camera and that one feature
+//! (Eq 1), an end-effector point's on the camera and `base_from_disc` (Eq 9), a known
+//! disc point's on the camera alone (see [`OtherBlock`]). Ordered camera (6), base (4),
+//! features (3 each), the normal matrix `J^T W J` is therefore
+//!
+//! ```text
+//!     [ A    W_1  ...  W_8 ]      A   10x10  camera and base
+//!     [ W_1' V_1           ]      W_i 10x3   camera rows only (base rows are zero)
+//!     [ ...       ...      ]      V_i  3x3   feature i
+//!     [ W_8'           V_8 ]
+//! ```
+//!
+//! and only these blocks are stored: 2.8 KiB instead of the dense 34x34 matrix's 9.2
+//! KiB, with no copy of it on the firmware's stack. The features are eliminated:
+//! `S = A - sum_i W_i V_i^-1 W_i^T` (10x10), `S x_a = b_a - sum_i W_i V_i^-1 b_i`, then
+//! `x_i = V_i^-1 (b_i - W_i^T x_a)`; the inverse's blocks the uncertainty needs are
+//! `S^-1` for the camera and base, and `V_i^-1 delta_ij + V_i^-1 W_i^T S^-1 W_j V_j^-1`
+//! between features. Both are exact rearrangements of the dense solve and inverse: the
+//! tests compare them with nalgebra's on random problems.
+
+use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
+
+use super::cholesky::{factor_in_place, solve_in_place};
+use super::model::{OtherBlock, BASE_OFFSET, FEATURE_OFFSET, PARAMETERS};
+use crate::observation::MAX_PART_FEATURES;
+
+/// Camera parameters: rotation increment (3), optical centre (3).
+pub const CAMERA_PARAMETERS: usize = 6;
+/// `base_from_disc` parameters: yaw, translation (3).
+pub const BASE_PARAMETERS: usize = 4;
+/// Camera and base together: the block `A` of the arrowhead.
+pub const ARROW_PARAMETERS: usize = CAMERA_PARAMETERS + BASE_PARAMETERS;
+
+/// A matrix over the camera and base parameters (camera first).
+pub type ArrowMatrix = SMatrix<f64, ARROW_PARAMETERS, ARROW_PARAMETERS>;
+type ArrowVector = SVector<f64, ARROW_PARAMETERS>;
+/// `W_i` restricted to its nonzero camera rows.
+type Cross = SMatrix<f64, CAMERA_PARAMETERS, 3>;
+/// A step in the layout of [`super::model::WorkcellModel::retract`].
+pub type Increment = SVector<f64, PARAMETERS>;
+
+/// Which parameters the data can move. The others (unused feature slots, the base
+/// without sightings, the base height when it is known) get a zero step and a zero
+/// variance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Freedom {
+    /// Features `0..feature_count` are estimated.
+    pub feature_count: usize,
+    /// Base yaw and translation x, y, z: estimated or held.
+    pub base_free: [bool; BASE_PARAMETERS],
+}
+
+impl Freedom {
+    fn arrow_free(&self, k: usize) -> bool {
+        k < CAMERA_PARAMETERS
+            || self
+                .base_free
+                .get(k - CAMERA_PARAMETERS)
+                .copied()
+                .unwrap_or(false)
+    }
+
+    fn features(&self) -> usize {
+        self.feature_count.min(MAX_PART_FEATURES)
+    }
+}
+
+/// Covariance of the estimate where the uncertainty reads it: the camera and base
+/// parameters and the part position (the features' mean), scaled by the pixel variance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MarginalCovariance {
+    /// Rotation (3), optical centre (3), base yaw, base translation (3); a held
+    /// parameter's variance is zero.
+    pub camera_and_base: ArrowMatrix,
+    /// Of the mean of features `0..feature_count` in the rotating frame.
+    pub part_position: Matrix3<f64>,
+}
+
+/// The blocks of the arrowhead normal equations `J^T W J` and gradient `J^T W r`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NormalBlocks {
+    arrow: ArrowMatrix,
+    arrow_gradient: ArrowVector,
+    features: [Matrix3<f64>; MAX_PART_FEATURES],
+    cross: [Cross; MAX_PART_FEATURES],
+    feature_gradients: [Vector3<f64>; MAX_PART_FEATURES],
+}
+
+impl Default for NormalBlocks {
+    fn default() -> Self {
+        Self::zeros()
+    }
+}
+
+impl NormalBlocks {
+    pub fn zeros() -> Self {
+        Self {
+            arrow: ArrowMatrix::zeros(),
+            arrow_gradient: ArrowVector::zeros(),
+            features: [Matrix3::zeros(); MAX_PART_FEATURES],
+            cross: [Cross::zeros(); MAX_PART_FEATURES],
+            feature_gradients: [Vector3::zeros(); MAX_PART_FEATURES],
+        }
+    }
+
+    /// Adds one weighted residual: `camera` and `other` are its Jacobian blocks.
+    pub fn accumulate(
+        &mut self,
+        camera: &SMatrix<f64, 2, CAMERA_PARAMETERS>,
+        other: &OtherBlock,
+        residual: &Vector2<f64>,
+        weight: f64,
+    ) {
+        let camera_t = camera.transpose() * weight;
+        let mut cc = self
+            .arrow
+            .fixed_view_mut::<CAMERA_PARAMETERS, CAMERA_PARAMETERS>(0, 0);
+        cc += camera_t * camera;
+        let mut gc = self
+            .arrow_gradient
+            .fixed_view_mut::<CAMERA_PARAMETERS, 1>(0, 0);
+        gc += camera_t * residual;
+        match *other {
+            OtherBlock::None => {}
+            OtherBlock::Feature { index, jacobian } => {
+                let (Some(v), Some(w), Some(g)) = (
+                    self.features.get_mut(index),
+                    self.cross.get_mut(index),
+                    self.feature_gradients.get_mut(index),
+                ) else {
+                    return;
+                };
+                let jacobian_t = jacobian.transpose() * weight;
+                *w += camera_t * jacobian;
+                *v += jacobian_t * jacobian;
+                *g += jacobian_t * residual;
+            }
+            OtherBlock::Base(block) => {
+                let block_t = block.transpose() * weight;
+                let cross = camera_t * block;
+                let c = CAMERA_PARAMETERS;
+                let mut cb = self
+                    .arrow
+                    .fixed_view_mut::<CAMERA_PARAMETERS, BASE_PARAMETERS>(0, c);
+                cb += cross;
+                let mut bc = self
+                    .arrow
+                    .fixed_view_mut::<BASE_PARAMETERS, CAMERA_PARAMETERS>(c, 0);
+                bc += cross.transpose();
+                let mut bb = self
+                    .arrow
+                    .fixed_view_mut::<BASE_PARAMETERS, BASE_PARAMETERS>(c, c);
+                bb += block_t * block;
+                let mut gb = self
+                    .arrow_gradient
+                    .fixed_view_mut::<BASE_PARAMETERS, 1>(c, 0);
+                gb += block_t * residual;
+            }
+        }
+    }
+
+    /// `A` with every held parameter's row and column replaced by the identity's.
+    fn arrow_holding(&self, freedom: &Freedom) -> ArrowMatrix {
+        let mut a = self.arrow;
+        for k in (0..ARROW_PARAMETERS).filter(|&k| !freedom.arrow_free(k)) {
+            a.row_mut(k).fill(0.0);
+            a.column_mut(k).fill(0.0);
+            if let Some(e) = a.get_mut((k, k)) {
+                *e = 1.0;
+            }
+        }
+        a
+    }
+
+    /// The Levenberg-Marquardt step `(N + damping diag N + 1e-12 I) x = -g` over the
+    /// free parameters (held ones step 0), by eliminating the features. `None` when the
+    /// damped system is not positive definite (the caller raises the damping).
+    pub fn damped_step(&self, freedom: &Freedom, damping: f64) -> Option<Increment> {
+        let damp = |d: &mut f64| *d = *d * (1.0 + damping) + 1e-12;
+        let mut schur = self.arrow_holding(freedom);
+        let mut rhs = -self.arrow_gradient;
+        for k in 0..ARROW_PARAMETERS {
+            if freedom.arrow_free(k) {
+                if let Some(d) = schur.get_mut((k, k)) {
+                    damp(d);
+                }
+            } else if let Some(e) = rhs.get_mut(k) {
+                *e = 0.0;
+            }
+        }
+        let mut factors = [Matrix3::<f64>::zeros(); MAX_PART_FEATURES];
+        let features = self
+            .features
+            .iter()
+            .zip(&self.cross)
+            .zip(&self.feature_gradients)
+            .zip(factors.iter_mut())
+            .take(freedom.features());
+        for (((v, w), g), factor) in features {
+            *factor = *v;
+            for d in 0..3 {
+                if let Some(e) = factor.get_mut((d, d)) {
+                    damp(e);
+                }
+            }
+            if !factor_in_place(factor) {
+                return None;
+            }
+            let mut inverse_cross = w.transpose();
+            solve_in_place(factor, &mut inverse_cross);
+            let mut inverse_rhs = -g;
+            solve_in_place(factor, &mut inverse_rhs);
+            let mut cc = schur.fixed_view_mut::<CAMERA_PARAMETERS, CAMERA_PARAMETERS>(0, 0);
+            cc -= w * inverse_cross;
+            let mut rc = rhs.fixed_view_mut::<CAMERA_PARAMETERS, 1>(0, 0);
+            rc -= w * inverse_rhs;
+        }
+        if !factor_in_place(&mut schur) {
+            return None;
+        }
+        solve_in_place(&schur, &mut rhs);
+        let camera_step = rhs.fixed_view::<CAMERA_PARAMETERS, 1>(0, 0);
+        let mut step = Increment::zeros();
+        step.fixed_view_mut::<CAMERA_PARAMETERS, 1>(0, 0)
+            .copy_from(&camera_step);
+        step.fixed_view_mut::<BASE_PARAMETERS, 1>(BASE_OFFSET, 0)
+            .copy_from(&rhs.fixed_view::<BASE_PARAMETERS, 1>(CAMERA_PARAMETERS, 0));
+        let features = self
+            .cross
+            .iter()
+            .zip(&self.feature_gradients)
+            .zip(&factors)
+            .take(freedom.features())
+            .enumerate();
+        for (slot, ((w, g), factor)) in features {
+            let mut x = -g - w.transpose() * camera_step;
+            solve_in_place(factor, &mut x);
+            step.fixed_view_mut::<3, 1>(FEATURE_OFFSET + 3 * slot, 0)
+                .copy_from(&x);
+        }
+        Some(step)
+    }
+
+    /// The undamped inverse's camera, base and part-position blocks times `variance`
+    /// (held parameters are known exactly: zero variance). `None` when the normal matrix
+    /// is singular.
+    pub fn covariance(&self, freedom: &Freedom, variance: f64) -> Option<MarginalCovariance> {
+        let mut schur = self.arrow_holding(freedom);
+        let mut sum_inverse = Matrix3::<f64>::zeros();
+        let mut sum_inverse_cross = SMatrix::<f64, 3, CAMERA_PARAMETERS>::zeros();
+        let features = self
+            .features
+            .iter()
+            .zip(&self.cross)
+            .take(freedom.features());
+        for (v, w) in features {
+            let inverse = v.try_inverse()?;
+            let inverse_cross = inverse * w.transpose();
+            let mut cc = schur.fixed_view_mut::<CAMERA_PARAMETERS, CAMERA_PARAMETERS>(0, 0);
+            cc -= w * inverse_cross;
+            sum_inverse += inverse;
+            sum_inverse_cross += inverse_cross;
+        }
+        let mut camera_and_base = schur.try_inverse()?;
+        // The part position is the mean of the features: (1/n^2) sum_ij C(f_i, f_j).
+        let camera = camera_and_base.fixed_view::<CAMERA_PARAMETERS, CAMERA_PARAMETERS>(0, 0);
+        let count = freedom.feature_count.clamp(1, MAX_PART_FEATURES) as f64;
+        let part_position = (sum_inverse
+            + sum_inverse_cross * camera * sum_inverse_cross.transpose())
+            * (variance / (count * count));
+        camera_and_base *= variance;
+        for k in (0..ARROW_PARAMETERS).filter(|&k| !freedom.arrow_free(k)) {
+            if let Some(e) = camera_and_base.get_mut((k, k)) {
+                *e = 0.0;
+            }
+        }
+        Some(MarginalCovariance {
+            camera_and_base,
+            part_position,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_rng::splitmix;
+    use nalgebra::Matrix2x3;
+
+    type Dense = SMatrix<f64, PARAMETERS, PARAMETERS>;
+
+    /// The dense accumulation the blocks replace (the refinement's former code).
+    fn dense_accumulate(
+        normal: &mut Dense,
+        gradient: &mut Increment,
+        camera: &SMatrix<f64, 2, 6>,
+        other: &OtherBlock,
+        residual: &Vector2<f64>,
+        weight: f64,
+    ) {
+        let camera_t = camera.transpose() * weight;
+        let mut cc = normal.fixed_view_mut::<6, 6>(0, 0);
+        cc += camera_t * camera;
+        let mut gc = gradient.fixed_view_mut::<6, 1>(0, 0);
+        gc += camera_t * residual;
+        let (offset, width, block) = match *other {
+            OtherBlock::None => return,
+            OtherBlock::Feature { index, jacobian } => {
+                let mut padded = SMatrix::<f64, 2, 4>::zeros();
+                padded.fixed_view_mut::<2, 3>(0, 0).copy_from(&jacobian);
+                (FEATURE_OFFSET + 3 * index, 3, padded)
+            }
+            OtherBlock::Base(block) => (BASE_OFFSET, 4, block),
+        };
+        let block_t = block.transpose() * weight;
+        let cross = camera_t * block;
+        for r in 0..width {
+            for c in 0..6 {
+                normal[(c, offset + r)] += cross[(c, r)];
+                normal[(offset + r, c)] += cross[(c, r)];
+            }
+            for s in 0..width {
+                normal[(offset + r, offset + s)] += (block_t * block)[(r, s)];
+            }
+            gradient[offset + r] += (block_t * residual)[r];
+        }
+    }
+
+    /// The dense matrix the blocks stand for.
+    fn dense(blocks: &NormalBlocks) -> (Dense, Increment) {
+        let mut normal = Dense::zeros();
+        let mut gradient = Increment::zeros();
+        let arrow_index = |k: usize| if k < 6 { k } else { BASE_OFFSET + k - 6 };
+        for r in 0..ARROW_PARAMETERS {
+            for c in 0..ARROW_PARAMETERS {
+                normal[(arrow_index(r), arrow_index(c))] = blocks.arrow[(r, c)];
+            }
+            gradient[arrow_index(r)] = blocks.arrow_gradient[r];
+        }
+        for i in 0..MAX_PART_FEATURES {
+            let o = FEATURE_OFFSET + 3 * i;
+            normal
+                .fixed_view_mut::<3, 3>(o, o)
+                .copy_from(&blocks.features[i]);
+            normal
+                .fixed_view_mut::<6, 3>(0, o)
+                .copy_from(&blocks.cross[i]);
+            normal
+                .fixed_view_mut::<3, 6>(o, 0)
+                .copy_from(&blocks.cross[i].transpose());
+            gradient
+                .fixed_view_mut::<3, 1>(o, 0)
+                .copy_from(&blocks.feature_gradients[i]);
+        }
+        (normal, gradient)
+    }
+
+    fn dense_frozen(freedom: &Freedom, index: usize) -> bool {
+        if (FEATURE_OFFSET..BASE_OFFSET).contains(&index) {
+            return (index - FEATURE_OFFSET) / 3 >= freedom.feature_count;
+        }
+        index >= BASE_OFFSET && !freedom.base_free[index - BASE_OFFSET]
+    }
+
+    /// The former dense step: damped copy, held rows and columns to the identity.
+    fn dense_step(
+        normal: &Dense,
+        gradient: &Increment,
+        freedom: &Freedom,
+        damping: f64,
+    ) -> Increment {
+        let mut damped = *normal;
+        let mut rhs = -gradient;
+        for i in 0..PARAMETERS {
+            if dense_frozen(freedom, i) {
+                damped.row_mut(i).fill(0.0);
+                damped.column_mut(i).fill(0.0);
+                damped[(i, i)] = 1.0;
+                rhs[i] = 0.0;
+            } else {
+                damped[(i, i)] = damped[(i, i)] * (1.0 + damping) + 1e-12;
+            }
+        }
+        nalgebra::Cholesky::new(damped).unwrap().solve(&rhs)
+    }
+
+    /// The former dense covariance: inverse with held rows to the identity.
+    fn dense_covariance(normal: &Dense, freedom: &Freedom, variance: f64) -> Dense {
+        let mut held = *normal;
+        for i in (0..PARAMETERS).filter(|&i| dense_frozen(freedom, i)) {
+            held.row_mut(i).fill(0.0);
+            held.column_mut(i).fill(0.0);
+            held[(i, i)] = 1.0;
+        }
+        let mut inverse = held.try_inverse().unwrap() * variance;
+        for i in (0..PARAMETERS).filter(|&i| dense_frozen(freedom, i)) {
+            inverse[(i, i)] = 0.0;
+        }
+        inverse
+    }
+
+    /// Random weighted observations of the arrowhead's shape, into blocks and dense.
+    fn random_problem(seed: u64, freedom: &Freedom) -> (NormalBlocks, Dense, Increment) {
+        let mut state = seed;
+        let mut uniform = move || splitmix(&mut state) - 0.5;
+        let mut blocks = NormalBlocks::zeros();
+        let (mut normal, mut gradient) = (Dense::zeros(), Increment::zeros());
+        let has_base = freedom.base_free.iter().any(|&free| free);
+        let mut next_feature = 0;
+        for n in 0..160 {
+            let camera = SMatrix::<f64, 2, 6>::from_fn(|_, _| uniform());
+            let residual = Vector2::new(uniform(), uniform());
+            let weight = 1.0 + uniform();
+            let other = match n % 4 {
+                0 => OtherBlock::None,
+                1 if has_base => OtherBlock::Base(SMatrix::<f64, 2, 4>::from_fn(|_, _| uniform())),
+                _ => {
+                    next_feature += 1;
+                    OtherBlock::Feature {
+                        index: next_feature % freedom.feature_count,
+                        jacobian: Matrix2x3::from_fn(|_, _| uniform()),
+                    }
+                }
+            };
+            blocks.accumulate(&camera, &other, &residual, weight);
+            dense_accumulate(
+                &mut normal,
+                &mut gradient,
+                &camera,
+                &other,
+                &residual,
+                weight,
+            );
+        }
+        (blocks, normal, gradient)
+    }
+
+    const FREEDOMS: [Freedom; 4] = [
+        Freedom {
+            feature_count: 3,
+            base_free: [true; 4],
+        },
+        Freedom {
+            feature_count: 8,
+            base_free: [true, true, true, false],
+        },
+        Freedom {
+            feature_count: 2,
+            base_free: [false; 4],
+        },
+        Freedom {
+            feature_count: 5,
+            base_free: [true; 4],
+        },
+    ];
+
+    fn relative_gap(a: f64, b: f64) -> f64 {
+        (a - b).abs() / b.abs().max(1e-300)
+    }
+
+    #[test]
+    fn the_blocks_are_the_dense_normal_equations() {
+        for (seed, freedom) in FREEDOMS.iter().enumerate() {
+            let (blocks, normal, gradient) = random_problem(seed as u64 + 1, freedom);
+            let (from_blocks, gradient_from_blocks) = dense(&blocks);
+            assert_eq!(from_blocks, normal);
+            assert_eq!(gradient_from_blocks, gradient);
+        }
+    }
+
+    #[test]
+    fn the_schur_step_is_the_dense_cholesky_step() {
+        for seed in 0..24u64 {
+            let freedom = FREEDOMS[(seed % 4) as usize];
+            let (blocks, normal, gradient) = random_problem(100 + seed, &freedom);
+            for damping in [1e-9, 1e-4, 1.0, 1e3] {
+                let step = blocks.damped_step(&freedom, damping).unwrap();
+                let expected = dense_step(&normal, &gradient, &freedom, damping);
+                assert!(
+                    (step - expected).norm() <= 1e-10 * expected.norm(),
+                    "seed {seed} damping {damping}: {step} vs {expected}"
+                );
+                for i in (0..PARAMETERS).filter(|&i| dense_frozen(&freedom, i)) {
+                    assert_eq!(step[i], 0.0, "held parameter {i} moved");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_covariance_blocks_are_the_dense_inverse() {
+        for seed in 0..24u64 {
+            let freedom = FREEDOMS[(seed % 4) as usize];
+            let (blocks, normal, _) = random_problem(200 + seed, &freedom);
+            let variance = 0.3;
+            let covariance = blocks.covariance(&freedom, variance).unwrap();
+            let inverse = dense_covariance(&normal, &freedom, variance);
+            let arrow_index = |k: usize| if k < 6 { k } else { BASE_OFFSET + k - 6 };
+            for r in 0..ARROW_PARAMETERS {
+                for c in 0..ARROW_PARAMETERS {
+                    let expected = inverse[(arrow_index(r), arrow_index(c))];
+                    let got = covariance.camera_and_base[(r, c)];
+                    let scale = inverse[(arrow_index(r), arrow_index(r))].abs()
+                        + inverse[(arrow_index(c), arrow_index(c))].abs();
+                    assert!(
+                        (got - expected).abs() <= 1e-10 * scale.max(1e-300),
+                        "seed {seed} ({r}, {c}): {got} vs {expected}"
+                    );
+                }
+            }
+            let n = freedom.feature_count;
+            let mut part = Matrix3::zeros();
+            for i in 0..n {
+                for j in 0..n {
+                    part +=
+                        inverse.fixed_view::<3, 3>(FEATURE_OFFSET + 3 * i, FEATURE_OFFSET + 3 * j);
+                }
+            }
+            part /= (n * n) as f64;
+            for d in 0..3 {
+                assert!(
+                    relative_gap(covariance.part_position[(d, d)], part[(d, d)]) <= 1e-10,
+                    "seed {seed} axis {d}: {} vs {}",
+                    covariance.part_position[(d, d)],
+                    part[(d, d)]
+                );
+            }
+            assert!((covariance.part_position - part).norm() <= 1e-10 * part.norm());
+        }
+    }
+
+    #[test]
+    fn a_singular_feature_block_fails_the_step_and_the_covariance() {
+        let freedom = FREEDOMS[0];
+        let (mut blocks, _, _) = random_problem(7, &freedom);
+        blocks.features[1] = -Matrix3::identity();
+        assert!(blocks.damped_step(&freedom, 1e-4).is_none());
+        blocks.features[1] = Matrix3::zeros();
+        assert!(blocks.covariance(&freedom, 1.0).is_none());
+    }
+}
