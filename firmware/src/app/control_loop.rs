@@ -188,13 +188,11 @@ pub async fn control_loop(
         let phase = controller.phase();
         if phase != last_phase {
             last_phase = phase;
+            // defmt's own encoding of the enums (an index on the wire):
+            // through `Debug2Format`, core::fmt formatted them on the board.
             match controller.fault() {
-                Some(cause) => defmt::warn!(
-                    "pick: {} ({})",
-                    defmt::Debug2Format(&phase),
-                    defmt::Debug2Format(&cause)
-                ),
-                None => defmt::info!("pick: {}", defmt::Debug2Format(&phase)),
+                Some(cause) => defmt::warn!("pick: {} ({})", phase, cause),
+                None => defmt::info!("pick: {}", phase),
             }
         }
         let cost = cycles

@@ -128,13 +128,13 @@ async fn write_message(serial: &mut active::Serial, message: &Message) {
     let bytes = match encode_frame(message, &mut frame) {
         Ok(len) => frame.get(..len),
         Err(e) => {
-            defmt::error!("link: cannot encode: {}", defmt::Display2Format(&e));
+            defmt::error!("link: cannot encode: {}", e);
             None
         }
     };
     if let Some(bytes) = bytes {
         if let Err(e) = serial.write_all(bytes).await {
-            defmt::warn!("link write error {}", defmt::Debug2Format(&e));
+            defmt::warn!("link write error {}", e);
         }
     }
 }
@@ -161,7 +161,7 @@ pub async fn link_task(
         let n = match select(serial.read(&mut chunk), OUTGOING.receive()).await {
             Either::First(Ok(n)) => n,
             Either::First(Err(e)) => {
-                defmt::warn!("link read error {}", defmt::Debug2Format(&e));
+                defmt::warn!("link read error {}", e);
                 continue;
             }
             Either::Second(message) => {
@@ -179,7 +179,7 @@ pub async fn link_task(
                     session.on_message(&message)
                 }
                 Err(e) => {
-                    defmt::warn!("link: frame rejected: {}", defmt::Display2Format(&e));
+                    defmt::warn!("link: frame rejected: {}", e);
                     let report = session.responder.on_decode_error(&e);
                     stats::FRAMES_REJECTED.store(
                         session.responder.status().frames_rejected,

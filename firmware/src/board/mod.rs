@@ -83,9 +83,25 @@ impl fmt::Display for BoardError {
     }
 }
 
+/// The same sentences as `Display`, in defmt's encoding (through
+/// `Display2Format` the board would link core::fmt to format them).
 impl defmt::Format for BoardError {
     fn format(&self, f: defmt::Formatter<'_>) {
-        defmt::write!(f, "{}", defmt::Display2Format(self));
+        match self {
+            BoardError::EncoderOutOfRange { joint } => defmt::write!(
+                f,
+                "encoder count of joint {} is outside the i32 range",
+                joint + 1
+            ),
+            BoardError::NonFiniteTorque { joint } => {
+                defmt::write!(f, "servo torque for joint {} is not finite", joint + 1)
+            }
+            BoardError::NotOnThisBoard { device } => defmt::write!(
+                f,
+                "{=str}: not on this board (the simulator's, through the link in lock step)",
+                device
+            ),
+        }
     }
 }
 

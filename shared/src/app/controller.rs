@@ -178,10 +178,12 @@ pub fn configure(config: &CellConfig, sessions: &mut u32) -> Result<PickParts, C
 /// A calibration report when the control loop holds an estimate newer than
 /// the last one reported.
 pub fn new_calibration_report(control: &PickController, reported: &mut u32) -> Option<Message> {
-    let (serial, report) = control.calibration_report()?;
-    if serial == *reported {
+    // The serial first: every control period asks, and copying the report
+    // out only to find it already sent is a measurable share of a period.
+    if control.estimate_serial()? == *reported {
         return None;
     }
+    let (serial, report) = control.calibration_report()?;
     *reported = serial;
     Some(Message::CalibrationReport(report))
 }

@@ -23,6 +23,7 @@ const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
 /// Why a message could not be encoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum EncodeError {
     /// The message's payload exceeds [`MAX_MESSAGE_LEN`].
     MessageTooLarge,
@@ -44,6 +45,7 @@ impl fmt::Display for EncodeError {
 
 /// Why a received frame was rejected. The decoder has already resynchronised.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DecodeError {
     /// More than [`MAX_BODY_LEN`] bytes arrived without a delimiter; `discarded` bytes were dropped.
     Oversized { discarded: usize },

@@ -45,6 +45,7 @@ pub struct CellConfig {
 
 /// Where the pick stands.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum PickPhase {
     /// Not configured yet, or waiting for the first sensor sample.
     Idle,
@@ -76,6 +77,7 @@ pub enum PickPhase {
 
 /// Why the controller stopped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum FaultCause {
     /// A configuration value is out of range (the field is named in `detail`).
     BadConfig,

@@ -38,7 +38,6 @@ use embassy_stm32::peripherals::USART2;
 use embassy_stm32::timer::qei::Qei;
 use embassy_stm32::usart::{BufferedInterruptHandler, BufferedUart, Config as UartConfig};
 use embassy_stm32::{bind_interrupts, interrupt};
-use panic_probe as _;
 
 pub use cycles::DwtCycles;
 pub use encoders::QuadratureEncoders;
@@ -205,4 +204,18 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
         watchdog: IndependentWatchdogFeed::new(p.IWDG),
         control_source: ControlSource::Ticker,
     })
+}
+
+/// Logs where, then stops the core on an undefined instruction (a probe
+/// attached sees the fault; without one the independent watchdog resets the
+/// board). The location only, not the message: formatting it would link
+/// core::fmt (several KB of flash) for panic sites the panic-free code never
+/// reaches.
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    match info.location() {
+        Some(at) => defmt::error!("panic at {=str}:{=u32}", at.file(), at.line()),
+        None => defmt::error!("panic"),
+    }
+    cortex_m::asm::udf()
 }

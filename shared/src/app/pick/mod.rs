@@ -1297,7 +1297,14 @@ impl PickController {
 
     /// The latest calibration report and its serial number (one more per estimate).
     pub fn calibration_report(&self) -> Option<(u32, crate::protocol::CalibrationReport)> {
-        self.estimate.map(|e| (self.estimate_serial, e.report))
+        self.estimate
+            .as_ref()
+            .map(|e| (self.estimate_serial, e.report))
+    }
+
+    /// The serial of the estimate in use (changes with each new estimate).
+    pub fn estimate_serial(&self) -> Option<u32> {
+        self.estimate.as_ref().map(|_| self.estimate_serial)
     }
 
     /// The commanded twist's norm, for tests.
