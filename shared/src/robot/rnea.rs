@@ -52,12 +52,25 @@ impl<T: RealField + Copy> Puma560<T> {
         base_acceleration: &Vector3<T>,
     ) -> [LinkMotion<T>; 6] {
         let mut motion = [LinkMotion::at_rest(base_acceleration); 6];
+        self.forward_motion_into(trig, qd, qdd, base_acceleration, &mut motion);
+        motion
+    }
+
+    /// [`Self::forward_motion`] into the caller's storage.
+    #[inline(always)]
+    fn forward_motion_into(
+        &self,
+        trig: &JointTrig<T>,
+        qd: &JointVector<T>,
+        qdd: &JointVector<T>,
+        base_acceleration: &Vector3<T>,
+        motion: &mut [LinkMotion<T>; 6],
+    ) {
         self.outward(trig, qd, qdd, base_acceleration, |i, link_motion| {
             if let Some(slot) = motion.get_mut(i) {
                 *slot = link_motion;
             }
         });
-        motion
     }
 
     /// The motion of frame {6} alone ([`Self::forward_motion`]'s last entry,
@@ -140,11 +153,7 @@ impl<T: RealField + Copy> Puma560<T> {
         base_acceleration: &Vector3<T>,
     ) -> JointVector<T> {
         let mut motion = [LinkMotion::at_rest(base_acceleration); 6];
-        self.outward(trig, qd, qdd, base_acceleration, |i, link_motion| {
-            if let Some(slot) = motion.get_mut(i) {
-                *slot = link_motion;
-            }
-        });
+        self.forward_motion_into(trig, qd, qdd, base_acceleration, &mut motion);
         let mut tau = [T::zero(); 6];
         let mut force = Vector3::zeros();
         let mut moment = Vector3::zeros();
