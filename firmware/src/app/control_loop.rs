@@ -22,6 +22,7 @@ use shared::app::pick::{PickController, MAX_TICK_MESSAGES};
 use shared::protocol::{FaultCause, GripperCommand, Message, PickPhase, SensorSample};
 
 use super::channels::{CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, SAMPLES, TRIGGERS, WORK};
+use super::phase_log;
 use super::stats;
 use crate::board::{active, ControlSource, CycleCounter, PlantIo, Watchdog};
 
@@ -188,12 +189,7 @@ pub async fn control_loop(
         let phase = controller.phase();
         if phase != last_phase {
             last_phase = phase;
-            // defmt's own encoding of the enums (an index on the wire):
-            // through `Debug2Format`, core::fmt formatted them on the board.
-            match controller.fault() {
-                Some(cause) => defmt::warn!("pick: {} ({})", phase, cause),
-                None => defmt::info!("pick: {}", phase),
-            }
+            phase_log::note(phase, controller.fault());
         }
         let cost = cycles
             .now()

@@ -5,7 +5,8 @@
 //!   sensor sample: the pick's control part (fusion Eq 1, state machine,
 //!   Eq 23), the outputs, and the supervisor's checks;
 //! - [`link`] (middle, interrupt executor): the serial protocol session, the
-//!   frame pairer, and the messages the control loop queued;
+//!   frame pairer, and the messages the control loop queued; beside it
+//!   [`phase_log`] writes the pick's phase changes to the log;
 //! - [`worker`] (thread mode, lowest): the self-calibrator and the jobs
 //!   (estimate, intercept plan), which may take seconds.
 //!
@@ -14,6 +15,7 @@
 mod channels;
 mod control_loop;
 mod link;
+mod phase_log;
 pub mod stats;
 mod worker;
 
@@ -50,6 +52,10 @@ pub fn start(thread_spawner: Spawner, board: ActiveBoard) {
     match link::link_task(board.name, board.serial, board.control_source, board.cycles) {
         Ok(token) => link.spawn(token),
         Err(_) => defmt::panic!("cannot spawn the link task"),
+    }
+    match phase_log::phase_log_task() {
+        Ok(token) => link.spawn(token),
+        Err(_) => defmt::panic!("cannot spawn the phase log"),
     }
     match worker::worker_task(board.cycles) {
         Ok(token) => thread_spawner.spawn(token),
