@@ -1,8 +1,8 @@
 //! The pick's phase changes in the log, written at the link's priority: a
-//! defmt log line is about 4,500 instructions on the M4F (encoding and the
-//! transport), and in the control period it was the worst period's largest
-//! share (`RuntimeReport.control_worst_tick` found it). The control loop only
-//! queues the change.
+//! defmt log line costs about 900 instructions on the M4F (encoding and the
+//! transport), and a phase change falls in the worst control period
+//! (`RuntimeReport.control_worst_tick` found it: 19,760 instructions with the
+//! line, 18,880 without). The control loop only queues the change.
 
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
