@@ -95,6 +95,36 @@ pub fn mul6<T: RealField + Copy>(m: &Matrix6<T>, v: &Vector6<T>) -> Vector6<T> {
     )
 }
 
+/// `x.max(-limit).min(limit)` by comparisons (in the firmware's build
+/// `f32::max` and `min` are calls into compiler-builtins, about 10
+/// instructions each). The same result for every `x`, NaN included (it gives
+/// `-limit`), when `limit` is a number `>= 0`.
+#[inline(always)]
+pub fn clamp_symmetric<T: RealField + Copy>(x: T, limit: T) -> T {
+    if x >= -limit {
+        if x > limit {
+            limit
+        } else {
+            x
+        }
+    } else {
+        // below the range, or NaN
+        -limit
+    }
+}
+
+/// Microseconds to seconds in `f32`: through `u32` when the value fits, a
+/// hardware conversion on the M4F, where `u64 as f32` is a software routine.
+/// The same rounding either way.
+#[inline(always)]
+pub fn micros_to_seconds(us: u64) -> f32 {
+    let seconds = match u32::try_from(us) {
+        Ok(small) => small as f32,
+        Err(_) => us as f32,
+    };
+    seconds * 1e-6
+}
+
 /// True if no entry is NaN or infinite. Branch-free: `0 x` is 0 for a
 /// finite `x` and NaN otherwise, so one sum over the contiguous storage
 /// tells; an early-exit `all(is_finite)` through nalgebra's iterator costs
@@ -135,6 +165,37 @@ mod tests {
             assert_eq!(mul6(&big, &v6), big * v6);
             let rows: [[f64; 6]; 6] = big.transpose().into();
             assert_eq!(rows6(&big), rows);
+        }
+    }
+
+    #[test]
+    fn clamp_and_time_conversion_match_the_library_forms() {
+        let mut seed = 9_u64;
+        for _ in 0..10_000 {
+            let x = (splitmix(&mut seed) * 8.0 - 4.0) as f32;
+            let limit = (splitmix(&mut seed) * 3.0) as f32;
+            assert_eq!(clamp_symmetric(x, limit), x.max(-limit).min(limit));
+        }
+        for limit in [0.0_f32, 1.5] {
+            for x in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -0.0, 0.0] {
+                let (ours, library) = (clamp_symmetric(x, limit), x.max(-limit).min(limit));
+                assert!(
+                    ours.to_bits() == library.to_bits() || ours == library,
+                    "{x} {limit}"
+                );
+            }
+        }
+        for us in [
+            0_u64,
+            1,
+            999,
+            1_000_000,
+            63_300_000,
+            u64::from(u32::MAX),
+            u64::from(u32::MAX) + 7,
+            u64::MAX,
+        ] {
+            assert_eq!(micros_to_seconds(us), us as f32 * 1e-6);
         }
     }
 

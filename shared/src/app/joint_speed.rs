@@ -54,7 +54,7 @@ impl JointSpeedWindow {
             return None;
         }
         let (q_old, t_old) = (self.q.get(oldest)?, *self.time_us.get(oldest)?);
-        let dt_s = time_us.checked_sub(t_old)? as f32 * 1e-6;
+        let dt_s = crate::kernels::micros_to_seconds(time_us.checked_sub(t_old)?);
         (dt_s > 0.0).then(|| (q - q_old) / dt_s)
     }
 }

@@ -15,7 +15,7 @@ use super::error::{ControlError, ControlInput, ControlStage};
 use super::gains::{AxisGains, TaskGains};
 use super::model::{Joints, TaskKinematics, TaskSpaceModel};
 use super::orientation::orientation_error;
-use crate::kernels::{all_finite, mul6};
+use crate::kernels::{all_finite, clamp_symmetric, mul6};
 
 /// Desired motion of the flange (frame {6}), all in the base frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -305,7 +305,7 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
                 .copied()
                 .unwrap_or_else(T::zero);
             let increment = error.get(row).copied().unwrap_or_else(T::zero) * dt;
-            (previous + increment).max(-limit).min(limit)
+            clamp_symmetric(previous + increment, limit)
         })
     }
 
@@ -391,7 +391,7 @@ fn saturate<T: RealField + Copy>(tau: &Joints<T>, limits: &Joints<T>) -> (Joints
         } else {
             T::zero()
         };
-        let c = t.max(-limit).min(limit);
+        let c = clamp_symmetric(t, limit);
         if c != t {
             saturated = true;
         }

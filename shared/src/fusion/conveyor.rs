@@ -132,7 +132,12 @@ impl<T: RealField + Copy> ConveyorFilter<T> {
         }
         // Through T's own conversion from an integer, not f64 arithmetic
         // (software on the M4F).
-        let dt = T::from_u64(time_us - last).unwrap_or_else(T::zero) * convert(1e-6);
+        let elapsed_us = time_us - last;
+        let elapsed = match u32::try_from(elapsed_us) {
+            Ok(small) => T::from_u32(small),
+            Err(_) => T::from_u64(elapsed_us),
+        };
+        let dt = elapsed.unwrap_or_else(T::zero) * convert(1e-6);
         let (x, p) = self.predicted(dt);
         let z: T = convert((counts - self.origin_counts) as f64);
         let z = z * self.rad_per_count;

@@ -55,6 +55,7 @@ use crate::control::{
 };
 use crate::fusion::conveyor::wrap_pi;
 use crate::fusion::{ConveyorFilter, ConveyorState, LatchedSample};
+use crate::kernels::micros_to_seconds;
 use crate::planning::{
     within_reach, within_stretch, ArcLimits, ArcMove, ArcPoint, InterceptPlan, PlanError, TaskState,
 };
@@ -516,9 +517,9 @@ impl PickController {
         let dt_s = if self.ticks == 0 {
             0.0
         } else {
-            sample.time_us.saturating_sub(self.last_time_us) as f32 * 1e-6
+            micros_to_seconds(sample.time_us.saturating_sub(self.last_time_us))
         };
-        self.now_s = sample.time_us.saturating_sub(start_us) as f32 * 1e-6;
+        self.now_s = micros_to_seconds(sample.time_us.saturating_sub(start_us));
         self.last_time_us = sample.time_us;
         self.ticks = self.ticks.saturating_add(1);
         self.part_in_gripper = sample.part_in_gripper;
