@@ -9,7 +9,7 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
 use shared::app::pick::handoff::{TriggerRecord, VisionNews, WorkItem};
-use shared::protocol::{CellConfig, Message, SensorSample};
+use shared::protocol::{CalibrationReport, CellConfig, Message, SensorSample};
 
 type Raw = CriticalSectionRawMutex;
 
@@ -40,3 +40,8 @@ pub static NEWS_READY: Signal<Raw, ()> = Signal::new();
 /// Control loop -> link: actuator commands (lock step), telemetry and
 /// calibration reports to send.
 pub static OUTGOING: Channel<Raw, Message, 8> = Channel::new();
+/// Control loop -> link: the latest calibration report, which the link
+/// sends as a message (composing and queueing the 320-byte `Message` in the
+/// control period cost 1,200 instructions; this is a 72-byte hand-over). A
+/// report not yet taken is replaced by a newer one.
+pub static REPORTS: Signal<Raw, CalibrationReport> = Signal::new();

@@ -15,13 +15,14 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use embassy_time::{Duration, Instant, Ticker};
 use heapless::Vec;
-use shared::app::new_calibration_report;
 use shared::app::pick::handoff::{ControlEvent, WorkItem};
 use shared::app::pick::settings::PickSettings;
 use shared::app::pick::{PickController, MAX_TICK_MESSAGES};
 use shared::protocol::{FaultCause, GripperCommand, Message, PickPhase, SensorSample};
 
-use super::channels::{CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, SAMPLES, TRIGGERS, WORK};
+use super::channels::{
+    CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, REPORTS, SAMPLES, TRIGGERS, WORK,
+};
 use super::phase_log;
 use super::stats;
 use crate::board::{active, ControlSource, CycleCounter, PlantIo, Watchdog};
@@ -180,8 +181,14 @@ pub async fn control_loop(
                 }
             }
         }
-        if let Some(report) = new_calibration_report(controller, &mut reported_estimate) {
-            send(report);
+        if controller
+            .estimate_serial()
+            .is_some_and(|serial| serial != reported_estimate)
+        {
+            if let Some((serial, report)) = controller.calibration_report() {
+                reported_estimate = serial;
+                REPORTS.signal(report);
+            }
         }
         // By reference: `for message in extra` moves the whole three-slot
         // queue (960 bytes) into an iterator first, and the size-tuned task
