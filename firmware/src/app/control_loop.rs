@@ -21,7 +21,7 @@ use shared::app::pick::{PickController, MAX_TICK_MESSAGES};
 use shared::protocol::{FaultCause, GripperCommand, Message, PickPhase, SensorSample};
 
 use super::channels::{
-    CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, REPORTS, SAMPLES, TRIGGERS, WORK,
+    COMMANDS, CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, REPORTS, SAMPLES, TRIGGERS, WORK,
 };
 use super::phase_log;
 use super::stats;
@@ -170,7 +170,11 @@ pub async fn control_loop(
         let command = controller.on_sensor_sample(&sample, &mut extra);
         hand_on_events(controller, *session);
         match source {
-            ControlSource::LockStep => send(Message::ActuatorCommand(command)),
+            ControlSource::LockStep => {
+                if COMMANDS.try_send(command).is_err() {
+                    stats::count_dropped_message();
+                }
+            }
             ControlSource::Ticker => {
                 let closed = command.gripper == GripperCommand::Close;
                 if let Err(e) =

@@ -9,7 +9,7 @@
 
 use core::sync::atomic::Ordering;
 
-use embassy_futures::select::{select3, Either3};
+use embassy_futures::select::{select4, Either4};
 use embassy_time::Instant;
 use embedded_io_async::{Read, Write};
 use shared::app::pick::cell::Cell;
@@ -19,7 +19,8 @@ use shared::app::{ConfigRefused, LinkResponder};
 use shared::protocol::{encode_frame, FrameDecoder, Message, MAX_FRAME_LEN};
 
 use super::channels::{
-    Configured, CONTROL_CONFIG, NEWS, OUTGOING, REPORTS, SAMPLES, TRIGGERS, WORK, WORKER_CONFIG,
+    Configured, COMMANDS, CONTROL_CONFIG, NEWS, OUTGOING, REPORTS, SAMPLES, TRIGGERS, WORK,
+    WORKER_CONFIG,
 };
 use super::control_loop::{CONTROL_RATE_HZ, LAST_HOST_FRAME_US};
 use super::stats;
@@ -158,18 +159,29 @@ pub async fn link_task(
     let mut chunk = [0u8; READ_CHUNK];
     defmt::info!("link up on {}", board_name);
     loop {
-        let n = match select3(serial.read(&mut chunk), OUTGOING.receive(), REPORTS.wait()).await {
-            Either3::First(Ok(n)) => n,
-            Either3::First(Err(e)) => {
-                defmt::warn!("link read error {}", e);
+        // The period's command first, then its other messages, then reports.
+        let outgoing = select4(
+            COMMANDS.receive(),
+            OUTGOING.receive(),
+            REPORTS.wait(),
+            serial.read(&mut chunk),
+        );
+        let n = match outgoing.await {
+            Either4::First(command) => {
+                write_message(&mut serial, &Message::ActuatorCommand(command)).await;
                 continue;
             }
-            Either3::Second(message) => {
+            Either4::Second(message) => {
                 write_message(&mut serial, &message).await;
                 continue;
             }
-            Either3::Third(report) => {
+            Either4::Third(report) => {
                 write_message(&mut serial, &Message::CalibrationReport(report)).await;
+                continue;
+            }
+            Either4::Fourth(Ok(n)) => n,
+            Either4::Fourth(Err(e)) => {
+                defmt::warn!("link read error {}", e);
                 continue;
             }
         };
