@@ -15,6 +15,7 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use embassy_time::{Duration, Instant, Ticker};
 use heapless::Vec;
+use shared::app::new_report;
 use shared::app::pick::handoff::{ControlEvent, WorkItem};
 use shared::app::pick::settings::PickSettings;
 use shared::app::pick::{PickController, MAX_TICK_MESSAGES};
@@ -185,14 +186,8 @@ pub async fn control_loop(
                 }
             }
         }
-        if controller
-            .estimate_serial()
-            .is_some_and(|serial| serial != reported_estimate)
-        {
-            if let Some((serial, report)) = controller.calibration_report() {
-                reported_estimate = serial;
-                REPORTS.signal(report);
-            }
+        if let Some(report) = new_report(controller, &mut reported_estimate) {
+            REPORTS.signal(report);
         }
         // By reference: `for message in extra` moves the whole three-slot
         // queue (960 bytes) into an iterator first, and the size-tuned task

@@ -9,7 +9,7 @@ use super::link::LinkResponder;
 use super::pick::cell::ConfigError;
 use super::pick::handoff::{ControlEvent, JobTicket, VisionNews, WorkItem};
 use super::pick::{PickController, PickParts, MAX_TICK_MESSAGES};
-use crate::protocol::{CellConfig, DecodeError, ErrorCode, Message};
+use crate::protocol::{CalibrationReport, CellConfig, DecodeError, ErrorCode, Message};
 
 /// Replies one incoming message may produce.
 pub const MAX_REPLIES: usize = MAX_TICK_MESSAGES + 1;
@@ -175,9 +175,15 @@ pub fn configure(config: &CellConfig, sessions: &mut u32) -> Result<PickParts, C
     PickParts::new(config, *sessions).map_err(|error| ConfigRefused { error })
 }
 
-/// A calibration report when the control loop holds an estimate newer than
-/// the last one reported.
+/// A calibration report message when the control loop holds an estimate
+/// newer than the last one reported.
 pub fn new_calibration_report(control: &PickController, reported: &mut u32) -> Option<Message> {
+    new_report(control, reported).map(Message::CalibrationReport)
+}
+
+/// The report itself, for a caller that hands it on without composing the
+/// message (the firmware's control loop gives it to the link task).
+pub fn new_report(control: &PickController, reported: &mut u32) -> Option<CalibrationReport> {
     // The serial first: every control period asks, and copying the report
     // out only to find it already sent is a measurable share of a period.
     if control.estimate_serial()? == *reported {
@@ -185,7 +191,7 @@ pub fn new_calibration_report(control: &PickController, reported: &mut u32) -> O
     }
     let (serial, report) = control.calibration_report()?;
     *reported = serial;
-    Some(Message::CalibrationReport(report))
+    Some(report)
 }
 
 /// `CellConfig`'s fields in declaration order, for the error report's detail.
