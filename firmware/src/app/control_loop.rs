@@ -22,7 +22,8 @@ use shared::app::pick::{PickController, MAX_TICK_MESSAGES};
 use shared::protocol::{FaultCause, GripperCommand, Message, PickPhase, SensorSample};
 
 use super::channels::{
-    COMMANDS, CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, REPORTS, SAMPLES, TRIGGERS, WORK,
+    Configured, COMMANDS, CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, REPORTS, SAMPLES, TRIGGERS,
+    WORK,
 };
 use super::phase_log;
 use super::stats;
@@ -79,6 +80,33 @@ fn hand_on_events(pick: &mut PickController, session: u32) {
     }
 }
 
+/// Replaces the pick for a new configuration. Out of line: the controller
+/// (4.5 KB) and its dynamics model are built in this function's frame (with
+/// `controller_model`'s 5 KB and `Puma560::new`'s 2.7 KB under it), not in the
+/// task poll's, which is on the stack in every period.
+#[inline(never)]
+fn configure(
+    pick: &mut Option<(u32, PickController)>,
+    reported_estimate: &mut u32,
+    configured: &Configured,
+) {
+    match PickController::new(
+        &configured.config,
+        PickSettings::default(),
+        configured.session,
+    ) {
+        Ok(controller) => {
+            *pick = Some((configured.session, controller));
+            *reported_estimate = 0;
+            stats::reset_costs();
+        }
+        Err(e) => {
+            defmt::error!("control loop: configuration refused: {}", e.field);
+            *pick = None;
+        }
+    }
+}
+
 /// The next sample: from the link in lock step, from the board's encoders on
 /// the ticker.
 async fn next_sample(
@@ -126,21 +154,7 @@ pub async fn control_loop(
         // Every period, configured or not; the first one arms it.
         watchdog.feed();
         if let Some(configured) = CONTROL_CONFIG.try_take() {
-            match PickController::new(
-                &configured.config,
-                PickSettings::default(),
-                configured.session,
-            ) {
-                Ok(controller) => {
-                    pick = Some((configured.session, controller));
-                    reported_estimate = 0;
-                    stats::reset_costs();
-                }
-                Err(e) => {
-                    defmt::error!("control loop: configuration refused: {}", e.field);
-                    pick = None;
-                }
-            }
+            configure(&mut pick, &mut reported_estimate, &configured);
         }
         let (Some(sample), Some((session, controller))) = (sample, pick.as_mut()) else {
             plant.disable();
