@@ -9,11 +9,15 @@ use heapless::Vec;
 use super::cell::{Cell, ConfigError};
 use super::estimate::CellEstimate;
 use super::handoff::{JobOutcome, JobRequest, JobResult, JobTicket, VisionNews, WorkItem};
-use super::jobs::{calibration_poses, plan_part_intercept, MAX_CALIBRATION_POSES};
+use super::jobs::{
+    calibration_poses, plan_part_intercept, ConveyorSnapshot, MAX_CALIBRATION_POSES,
+};
+use super::motion::Prediction;
 use super::settings::{at_most, PickSettings};
 use super::{controller_model, PickCalibrator};
 use crate::calibration::CalibrationError;
-use crate::planning::ArcPoint;
+use crate::observation::ObservationFrame;
+use crate::planning::{ArcPoint, InterceptPlan, PlanError, TaskState};
 use crate::protocol::{CellConfig, FaultCause};
 use crate::robot::Puma560;
 
@@ -46,11 +50,21 @@ impl PickWorker {
     /// refused one is reported), a job runs to completion.
     pub fn process(&mut self, item: &WorkItem) -> Option<VisionNews> {
         match item {
-            WorkItem::Observation(observation) => match self.calibrator.push(observation) {
-                Ok(()) => None,
-                Err(_) => Some(VisionNews::Refused),
-            },
+            WorkItem::Observation(observation) => self.absorb(observation),
             WorkItem::Job(ticket) => Some(VisionNews::Result(self.run(ticket))),
+        }
+    }
+
+    /// Gives one observation to the calibrator (news when it is refused).
+    /// Out of line, like [`PickWorker::plan`]: on the firmware the estimate's
+    /// frame lies under the bundle adjustment (the deepest stack, under both
+    /// interrupt levels) and a frame is the union of everything inlined into
+    /// it, so the observation's and the plan's temporaries stay out of it.
+    #[inline(never)]
+    fn absorb(&mut self, observation: &ObservationFrame) -> Option<VisionNews> {
+        match self.calibrator.push(observation) {
+            Ok(()) => None,
+            Err(_) => Some(VisionNews::Refused),
         }
     }
 
@@ -68,20 +82,32 @@ impl PickWorker {
                 q_start,
                 conveyor,
                 estimate,
-            } => JobOutcome::Plan(plan_part_intercept(
-                &start,
-                &q_start,
-                &estimate,
-                &conveyor,
-                &self.settings,
-                &self.model,
-            )),
+            } => JobOutcome::Plan(self.plan(&start, &q_start, &conveyor, &estimate)),
         };
         JobResult {
             session: ticket.session,
             job_id: ticket.job_id,
             outcome,
         }
+    }
+
+    /// Plans the intercept (out of line: see [`PickWorker::absorb`]).
+    #[inline(never)]
+    fn plan(
+        &self,
+        start: &TaskState<f32>,
+        q_start: &crate::robot::JointVector<f32>,
+        conveyor: &ConveyorSnapshot,
+        estimate: &CellEstimate,
+    ) -> Result<(InterceptPlan<f32>, Prediction), PlanError> {
+        plan_part_intercept(
+            start,
+            q_start,
+            estimate,
+            conveyor,
+            &self.settings,
+            &self.model,
+        )
     }
 
     /// Self-calibrates, refusing an estimate the pick cannot trust.
