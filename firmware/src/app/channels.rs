@@ -3,7 +3,12 @@
 //! on another task, except in lock step for a job result that is due, see
 //! `control_loop`). Capacities are sized for lock step, where the host sends
 //! one period's frames and then waits for the actuator command, and are
-//! counted when a real-time run overflows them (`RuntimeReport`).
+//! counted when a real-time run overflows them (`RuntimeReport`). The most
+//! each queue held in the emulated pick (experiment 2, 63,000 periods, three
+//! jobs) is given with it; the other emulated runs (faults, noisy line) pass
+//! at these capacities too. The queued items are large (a `Message` is 312
+//! bytes, a `WorkItem` 304, a `VisionNews` 352), so every slot is RAM the
+//! 64 KiB goal counts.
 
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
@@ -30,15 +35,26 @@ pub static SAMPLES: Channel<Raw, SensorSample, 2> = Channel::new();
 /// Control loop -> link (frame pairer): the encoders latched at a trigger.
 pub static TRIGGERS: Channel<Raw, TriggerRecord, 8> = Channel::new();
 /// Link (observations) and control loop (jobs) -> worker, in order, with the
-/// session they belong to.
-pub static WORK: Channel<Raw, (u32, WorkItem), 16> = Channel::new();
-/// Link (pairings) and worker (refusals, job results) -> control loop.
-pub static NEWS: Channel<Raw, VisionNews, 8> = Channel::new();
+/// session they belong to. The observations of the frames that arrive while
+/// a job runs wait here: an estimate's result is due after 1 s, five frames
+/// at the camera's 5 Hz, and in lock step the host waits then (5 at most in
+/// the emulated pick). 8 slots are 1.6 s of frames; a real-time job that runs
+/// longer drops the later observations (counted), as 16 slots did after
+/// 3.2 s.
+pub static WORK: Channel<Raw, (u32, WorkItem), 8> = Channel::new();
+/// Link (pairings) and worker (refusals, job results) -> control loop, which
+/// empties it every period: a pairing per camera frame, a result per job (1 at
+/// most in the emulated pick). A pairing or refusal that finds it full is
+/// dropped (counted); a job's result waits for room.
+pub static NEWS: Channel<Raw, VisionNews, 4> = Channel::new();
 /// Worker -> control loop: news is waiting (a job result, or the news queue
 /// filled up while the control loop waited for a result).
 pub static NEWS_READY: Signal<Raw, ()> = Signal::new();
-/// Control loop -> link: telemetry and the other messages of a period.
-pub static OUTGOING: Channel<Raw, Message, 8> = Channel::new();
+/// Control loop -> link: telemetry and the other messages of a period, at
+/// most `MAX_TICK_MESSAGES` (3) a period. The link sends them before it reads
+/// again, so in lock step the queue is empty when the next sample arrives (1
+/// at most in the emulated pick).
+pub static OUTGOING: Channel<Raw, Message, 4> = Channel::new();
 /// Control loop -> link (lock step): the period's actuator command, which the
 /// link sends before anything in `OUTGOING` (a 40-byte hand-over: queueing it
 /// as a 320-byte `Message` cost the control period about 500 instructions).
