@@ -81,20 +81,21 @@ fn hand_on_events(pick: &mut PickController, session: u32) {
 }
 
 /// Replaces the pick for a new configuration. Out of line: the controller
-/// (4.5 KB) and its dynamics model are built in this function's frame (with
-/// `controller_model`'s 5 KB and `Puma560::new`'s 2.7 KB under it), not in the
-/// task poll's, which is on the stack in every period.
+/// (4.5 KB) is built in this function's frame, not in the task poll's, which
+/// is on the stack in every period. A new configuration keeps the current
+/// controller's dynamic model, which no configuration changes: it is built
+/// (`controller_model`'s 5 KB and `Puma560::new`'s 2.7 KB of stack) only when
+/// there is no controller, the first time before the worker has ever had
+/// work, so not on top of its bundle adjustment.
 #[inline(never)]
 fn configure(
     pick: &mut Option<(u32, PickController)>,
     reported_estimate: &mut u32,
     configured: &Configured,
 ) {
-    match PickController::new(
-        &configured.config,
-        PickSettings::default(),
-        configured.session,
-    ) {
+    let settings = PickSettings::default();
+    let current = pick.as_ref().map(|(_, controller)| controller);
+    match PickController::replacing(current, &configured.config, settings, configured.session) {
         Ok(controller) => {
             *pick = Some((configured.session, controller));
             *reported_estimate = 0;

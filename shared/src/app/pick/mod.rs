@@ -313,10 +313,36 @@ fn controller_model() -> Result<Puma560<f32>, ConfigError> {
         .cast::<f32>())
 }
 
+/// `previous`'s dynamic model, or a new one. Out of line: with the choice
+/// inlined, the firmware's build of [`PickController::replacing`] held two
+/// copies of the controller's construction (4 KB more flash).
+#[inline(never)]
+fn model_of(previous: Option<&PickController>) -> Result<Puma560<f32>, ConfigError> {
+    match previous {
+        Some(previous) => Ok(previous.model),
+        None => controller_model(),
+    }
+}
+
 impl PickController {
     /// The control loop for the cell `config`; `session` tells this
     /// configuration's job results from an older one's.
     pub fn new(
+        config: &CellConfig,
+        settings: PickSettings,
+        session: u32,
+    ) -> Result<Self, ConfigError> {
+        Self::replacing(None, config, settings, session)
+    }
+
+    /// The control loop for the cell `config`, as [`PickController::new`]
+    /// makes it, with `previous`'s dynamic model if there is one (no
+    /// configuration changes the model): the firmware reconfigures this way so
+    /// that building the model (`controller_model` and `Puma560::new`, 7.6 KB
+    /// of stack) is not on the control loop's stack while the worker may be
+    /// deep in a job.
+    pub fn replacing(
+        previous: Option<&PickController>,
         config: &CellConfig,
         settings: PickSettings,
         session: u32,
@@ -326,7 +352,7 @@ impl PickController {
             .map_err(|_| ConfigError {
                 field: "conveyor_counts_per_rev",
             })?;
-        let model = controller_model()?;
+        let model = model_of(previous)?;
         let controller =
             TaskSpaceController::new(controller_config()?).map_err(|_| ConfigError {
                 field: "controller gains",
@@ -1317,5 +1343,53 @@ impl PickController {
     pub fn twist_norm(&self) -> f32 {
         let twist: Vector6<f32> = self.reference.twist();
         twist.norm()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::JOINTS;
+
+    fn config(conveyor_counts_per_rev: u32, part_feature_count: u8) -> CellConfig {
+        CellConfig {
+            image_width_px: 256,
+            image_height_px: 256,
+            f_px: 300.0,
+            cx_px: 128.0,
+            cy_px: 128.0,
+            pixel_sigma_px: 0.5,
+            reference_radius_m: 0.4,
+            part_feature_count,
+            conveyor_counts_per_rev,
+            conveyor_counter_bits: 16,
+            joint_counts_per_rad: [10_000.0; JOINTS],
+            disc_height_in_base_m: None,
+            drop_off_base_m: [0.0, 0.55, 0.3],
+            camera_period_ms: 200,
+            telemetry_period_ticks: 1,
+        }
+    }
+
+    #[test]
+    fn a_controller_replacing_another_is_a_new_controller() {
+        let settings = PickSettings::default();
+        let first = PickController::new(&config(4096, 4), settings, 1)
+            .unwrap_or_else(|e| panic!("{}", e.field));
+        let next = config(2048, 3);
+        let reconfigured = PickController::replacing(Some(&first), &next, settings, 2)
+            .unwrap_or_else(|e| panic!("{}", e.field));
+        let new = PickController::new(&next, settings, 2).unwrap_or_else(|e| panic!("{}", e.field));
+        assert_eq!(format!("{reconfigured:?}"), format!("{new:?}"));
+        let mut bad = next;
+        bad.conveyor_counts_per_rev = 0;
+        assert_eq!(
+            PickController::replacing(Some(&first), &bad, settings, 3)
+                .map(|_| ())
+                .map_err(|e| e.field),
+            PickController::new(&bad, settings, 3)
+                .map(|_| ())
+                .map_err(|e| e.field)
+        );
     }
 }
