@@ -60,38 +60,41 @@ fn build(slot: &mut Option<(u32, PickWorker)>, configured: &Configured) {
     }
 }
 
-/// Waits for a new configuration (the worker is replaced) or an item of
-/// work (run if it belongs to the current session; its news, if any, left in
-/// `news`). A configuration comes first, as it did when both were ready. Out
-/// of line, like everything the task does between awaits: the task's poll
-/// then holds no temporaries (it held 4.6 KB of them, under the bundle
-/// adjustment's frames), and the item and the news never cross an await by
-/// value.
+/// Waits for a new configuration (returned, for the task to replace the
+/// worker) or an item of work (run if it belongs to the current session; its
+/// news, if any, left in `news`). A configuration comes first, as it did when
+/// both were ready. Out of line, like everything the task does between
+/// awaits: the task's poll then holds no temporaries (it held 4.6 KB of them,
+/// under the bundle adjustment's frames), and the item and the news never
+/// cross an await by value. The worker is not built in here: this frame
+/// (4.4 KB, the estimate job's) would be under the build's, at the same time
+/// as the control loop builds its controller for the same configuration.
 #[inline(never)]
 fn poll_work(
     cx: &mut Context<'_>,
     worker: &mut Option<(u32, PickWorker)>,
     news: &mut Option<VisionNews>,
     cycles: &active::Cycles,
-) -> Poll<()> {
+) -> Poll<Option<Configured>> {
     // `Signal::wait` is a stateless poll function: a new one per poll is the
     // same as keeping one.
     if let Poll::Ready(configured) = Pin::new(&mut WORKER_CONFIG.wait()).poll(cx) {
-        build(worker, &configured);
-        return Poll::Ready(());
+        return Poll::Ready(Some(configured));
     }
     let Poll::Ready((session, item)) = WORK.poll_receive(cx) else {
         return Poll::Pending;
     };
-    // A configuration signalled before this item was queued applies to it.
+    // A configuration signalled before this item was queued applies to it
+    // (a configuration between the two polls above: rare enough to be built
+    // here).
     if let Some(configured) = WORKER_CONFIG.try_take() {
         build(worker, &configured);
     }
     let Some((current, pick_worker)) = worker.as_mut() else {
-        return Poll::Ready(());
+        return Poll::Ready(None);
     };
     if session != *current {
-        return Poll::Ready(());
+        return Poll::Ready(None);
     }
     let started = cycles.now();
     *news = pick_worker.process(&item);
@@ -103,7 +106,7 @@ fn poll_work(
         stats::record_job(cost);
         defmt::info!("worker: job done, {} {}", cost, cycles.unit());
     }
-    Poll::Ready(())
+    Poll::Ready(None)
 }
 
 #[embassy_executor::task]
@@ -111,7 +114,10 @@ pub async fn worker_task(cycles: active::Cycles) {
     let mut worker: Option<(u32, PickWorker)> = None;
     let mut news: Option<VisionNews> = None;
     loop {
-        poll_fn(|cx| poll_work(cx, &mut worker, &mut news, &cycles)).await;
+        if let Some(configured) = poll_fn(|cx| poll_work(cx, &mut worker, &mut news, &cycles)).await
+        {
+            build(&mut worker, &configured);
+        }
         while tell_control(&mut news) {
             poll_fn(|cx| NEWS.poll_ready_to_send(cx)).await;
         }
