@@ -11,16 +11,17 @@
 
 use super::config::CalibrationConfig;
 use super::error::CalibrationError;
+use super::frame_store::FrameView;
 use super::model::{for_each_observation, WorkcellModel};
 use super::normal_blocks::{Freedom, MarginalCovariance, NormalBlocks};
 use super::pinhole::Pinhole;
-use super::records::{EffectorRecord, FrameRecord};
+use super::records::EffectorRecord;
 
 /// What the refinement sees: stored observations and how to treat them.
 #[derive(Clone, Copy)]
 pub struct Problem<'a> {
     pub pinhole: Pinhole,
-    pub frames: &'a [FrameRecord],
+    pub frames: FrameView<'a>,
     pub effectors: &'a [EffectorRecord],
     pub feature_count: usize,
     pub reference_radius_m: f64,
