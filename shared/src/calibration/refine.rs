@@ -183,6 +183,8 @@ fn minimise(
 
 /// Robust scale of the residual norms from a fixed histogram (memory independent of the
 /// number of points): median of a 2-D Gaussian residual's norm is 1.1774 sigma.
+/// Out of line, so that its histogram is not in `fit`'s frame under `minimise`.
+#[inline(never)]
 fn robust_sigma(problem: &Problem<'_>, model: &WorkcellModel, nominal_sigma: f64) -> f64 {
     const BINS: usize = 128;
     const RANGE_SIGMAS: f64 = 32.0;
