@@ -305,3 +305,14 @@ fn calibrator_sizes_are_documented() {
     assert!(firmware <= 24 * 1024, "{firmware}");
     assert!(host <= 160 * 1024, "{host}");
 }
+
+#[test]
+fn pick_calibrator_packs_its_frames() {
+    use shared::app::pick::PickCalibrator;
+    let pick = core::mem::size_of::<PickCalibrator>();
+    eprintln!("size_of PickCalibrator = {pick} B");
+    // 256 frames of five f32 pixels, an f64 angle and a presence byte (12,544 B),
+    // 128 sightings of 40 B and the header, config and conic: under 18.5 KiB (it
+    // was 32 KiB with every frame laid out for eight features).
+    assert!(pick <= 18 * 1024 + 512, "{pick}");
+}

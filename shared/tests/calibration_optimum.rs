@@ -6,6 +6,7 @@
 mod calibration_support;
 
 use calibration_support::{Errors, Rng, Scenario, Workcell};
+use shared::calibration::frame_store::FrameStore;
 use shared::calibration::model::WorkcellModel;
 use shared::calibration::pinhole::Pinhole;
 use shared::calibration::records::{to_f32, EffectorRecord, FrameRecord};
@@ -26,28 +27,26 @@ fn refined_estimate_reaches_the_likelihood_optimum() {
             calibrator.push(frame).unwrap();
         }
         let own = calibrator.estimate().unwrap();
-        let records: Vec<FrameRecord> = frames
-            .iter()
-            .map(|f| FrameRecord {
+        let mut records: Box<FrameStore<1024>> = Box::new(FrameStore::new(3));
+        for f in &frames {
+            let part: Option<Vec<_>> = f
+                .part_px
+                .as_ref()
+                .map(|p| p.iter().copied().map(to_f32).collect());
+            records.offer(&FrameRecord {
                 theta: f.conveyor_angle_rad,
                 centre: f.center_px.map(to_f32),
                 reference: f.reference_px.map(to_f32),
-                part: f.part_px.as_ref().map(|p| {
-                    let mut a = [[0f32; 2]; MAX_PART_FEATURES];
-                    for (s, q) in a.iter_mut().zip(p.iter()) {
-                        *s = to_f32(*q);
-                    }
-                    a
-                }),
-            })
-            .collect();
+                part: part.as_deref(),
+            });
+        }
         let effectors: Vec<EffectorRecord> = frames
             .iter()
             .filter_map(|f| f.effector.as_ref().map(EffectorRecord::from_sighting))
             .collect();
         let problem = Problem {
             pinhole: Pinhole::new(&workcell.intrinsics),
-            frames: &records,
+            frames: records.view(),
             effectors: &effectors,
             feature_count: 3,
             reference_radius_m: 0.4,

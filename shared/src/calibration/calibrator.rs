@@ -9,6 +9,7 @@ use super::config::CalibrationConfig;
 use super::conic::{Conic, ConicFit};
 use super::effector::{depth_roots, wrap_angle, BaseFromDiscFit, DepthRoots};
 use super::error::CalibrationError;
+use super::frame_store::{FrameStore, FULL_FRAME_PIXELS};
 use super::homography::{pose_from_plane, PlanePoint, PlanePose};
 use super::model::{rotation_z, WorkcellModel};
 use super::part::{intersect_two_lines, line_residual, FeatureSystem, VirtualGeometry};
@@ -24,24 +25,31 @@ use crate::observation::{
 };
 
 /// Fixed-memory incremental estimator; `FRAMES` and `EFFECTOR_FRAMES` bound the stored
-/// observations (evenly thinned when more arrive; see [`ThinningStore`]).
+/// observations (evenly thinned when more arrive; see [`ThinningStore`]), and
+/// `PIXELS_PER_FRAME` is the frames' pixel budget (see [`FrameStore`]: with fewer than
+/// `2 + part_feature_count` pixels a frame, fewer than `FRAMES` frames fit).
 ///
-/// Memory: `size_of` is `488 + 104 * FRAMES + 40 * EFFECTOR_FRAMES` bytes on x86-64
-/// (a [`FrameRecord`] is 104 B: theta f64, three optional f32 pixel sets; an
+/// Memory: `size_of` is `512 + (9 + 8 * PIXELS_PER_FRAME) * FRAMES + 40 * EFFECTOR_FRAMES`
+/// bytes on x86-64 (a frame is an f64 angle, a presence byte and f32 pixels; an
 /// [`EffectorRecord`] 40 B; the rest is the header, config, the 6x6 RLS conic state and
-/// counters), a little less on thumbv7em where `usize` is 4 B. Measured by the test
-/// `calibrator_sizes_are_documented`: [`FirmwareCalibrator`] 11 112 B, [`HostCalibrator`]
-/// 117 224 B. [`SelfCalibrator::estimate`] additionally needs stack for the refinement's
+/// counters), a little less on thumbv7em where `usize` is 4 B. Measured by the tests
+/// `calibrator_sizes_are_documented` and `pick_calibrator_packs_its_frames`:
+/// [`FirmwareCalibrator`] 9 696 B, [`HostCalibrator`] 101 888 B, the pick's 18 176 B.
+/// [`SelfCalibrator::estimate`] additionally needs stack for the refinement's
 /// arrowhead normal equations (2.8 KiB of blocks, see [`super::normal_blocks`]),
 /// independent of the instance size.
 #[derive(Debug, Clone)]
-pub struct SelfCalibrator<const FRAMES: usize, const EFFECTOR_FRAMES: usize> {
+pub struct SelfCalibrator<
+    const FRAMES: usize,
+    const EFFECTOR_FRAMES: usize,
+    const PIXELS_PER_FRAME: usize = FULL_FRAME_PIXELS,
+> {
     header: LogHeader,
     config: CalibrationConfig,
     pinhole: Pinhole,
     /// Step 2's recursive least-squares conic, fed with every reference detection.
     conic: ConicFit,
-    frames: ThinningStore<FrameRecord, FRAMES>,
+    frames: FrameStore<FRAMES, PIXELS_PER_FRAME>,
     effectors: ThinningStore<EffectorRecord, EFFECTOR_FRAMES>,
     /// Frames offered to `push` (accepted or not): numbers frames in errors.
     offered: u32,
@@ -50,10 +58,32 @@ pub struct SelfCalibrator<const FRAMES: usize, const EFFECTOR_FRAMES: usize> {
     last_t_s: Option<f64>,
 }
 
-/// The firmware's small instance: 96 frames, 16 effector sightings (11 112 B on x86-64).
+/// A small instance: 96 frames, 16 effector sightings (9 696 B on x86-64).
 pub type FirmwareCalibrator = SelfCalibrator<96, 16>;
-/// The host's instance: 1024 frames, 256 effector sightings (117 224 B on x86-64).
+/// The host's instance: 1024 frames, 256 effector sightings (101 888 B on x86-64).
 pub type HostCalibrator = SelfCalibrator<1024, 256>;
+
+/// A frame that passed `validate`, its pixels already in the store's precision.
+struct ValidFrame {
+    theta: f64,
+    centre: Option<PixelF32>,
+    reference: Option<PixelF32>,
+    part: Option<[PixelF32; MAX_PART_FEATURES]>,
+}
+
+impl ValidFrame {
+    fn record(&self, part_feature_count: usize) -> FrameRecord<'_> {
+        FrameRecord {
+            theta: self.theta,
+            centre: self.centre,
+            reference: self.reference,
+            part: self
+                .part
+                .as_ref()
+                .map(|part| part.get(..part_feature_count).unwrap_or(part)),
+        }
+    }
+}
 
 /// A sighting's two points in the disc frame, as far as Eq 10 decides them.
 enum SightingPoints {
@@ -91,7 +121,9 @@ fn finite(pixel: &PixelPoint) -> bool {
     pixel.iter().all(|v| v.is_finite())
 }
 
-impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, EFFECTOR_FRAMES> {
+impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: usize>
+    SelfCalibrator<FRAMES, EFFECTOR_FRAMES, PIXELS_PER_FRAME>
+{
     pub fn new(header: &LogHeader, config: CalibrationConfig) -> Result<Self, CalibrationError> {
         let camera = &header.camera;
         if header.version != LOG_VERSION {
@@ -159,7 +191,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
             config,
             pinhole: Pinhole::new(camera),
             conic: ConicFit::new(),
-            frames: ThinningStore::new(),
+            frames: FrameStore::new(header.part_feature_count),
             effectors: ThinningStore::new(),
             offered: 0,
             frames_used: 0,
@@ -174,7 +206,8 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
     pub fn push(&mut self, frame: &ObservationFrame) -> Result<(), CalibrationError> {
         let index = self.offered;
         self.offered = self.offered.saturating_add(1);
-        let record = self.validate(index, frame)?;
+        let validated = self.validate(index, frame)?;
+        let record = validated.record(self.header.part_feature_count);
         self.last_t_s = Some(frame.t_s);
         if let Some(reference) = frame.reference_px {
             let [u, v] = reference;
@@ -190,7 +223,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
             self.frames_used = self.frames_used.saturating_add(1);
         }
         if detected {
-            self.frames.offer(record);
+            self.frames.offer(&record);
         }
         Ok(())
     }
@@ -199,7 +232,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         &self,
         index: u32,
         frame: &ObservationFrame,
-    ) -> Result<FrameRecord, CalibrationError> {
+    ) -> Result<ValidFrame, CalibrationError> {
         let non_finite = |field| CalibrationError::NonFiniteValue {
             frame: index,
             field,
@@ -294,7 +327,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
                 return Err(CalibrationError::CoincidingEffectorPoints { frame: index });
             }
         }
-        Ok(FrameRecord {
+        Ok(ValidFrame {
             theta: frame.conveyor_angle_rad,
             centre: frame.center_px.map(to_f32),
             reference: frame.reference_px.map(to_f32),
@@ -354,7 +387,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         let geometry = VirtualGeometry { rotation, gamma };
         let (disc_from_camera, camera_centre_disc) = disc_from_virtual(&rotation, gamma);
         // Eq 8 with two frames: the first showing the part and the one turned furthest from it.
-        let mut part_frames = self.frames.items().iter().filter(|f| f.part.is_some());
+        let mut part_frames = self.frames.view().iter().filter(|f| f.part.is_some());
         let first = part_frames
             .next()
             .ok_or(CalibrationError::TooFewObservations {
@@ -388,7 +421,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
                     let m = self.virtual_point(&rotation, pixel, "part_px")?;
                     Ok(geometry.affine_line(frame.theta, m))
                 };
-            *slot = intersect_two_lines(line(first)?, line(second)?)?;
+            *slot = intersect_two_lines(line(&first)?, line(&second)?)?;
         }
         // Eq 15 with one robot pose: the first sighting with a usable depth.
         let mut fit = BaseFromDiscFit::default();
@@ -438,7 +471,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
     fn problem(&self) -> Problem<'_> {
         Problem {
             pinhole: self.pinhole,
-            frames: self.frames.items(),
+            frames: self.frames.view(),
             effectors: self.effectors.items(),
             feature_count: self.header.part_feature_count,
             reference_radius_m: self.header.reference_radius_m,
@@ -468,7 +501,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
     ) -> Result<Vector2<f64>, CalibrationError> {
         let mut sum = Vector2::zeros();
         let mut count = 0u32;
-        for centre in self.frames.items().iter().filter_map(|f| f.centre) {
+        for centre in self.frames.view().iter().filter_map(|f| f.centre) {
             let pixel = to_vector(centre);
             if let Some((previous, gate)) = gate_px {
                 if (pixel - previous).norm() > gate {
@@ -514,7 +547,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         let rls = self.conic.solve();
         let rays = || {
             self.frames
-                .items()
+                .view()
                 .iter()
                 .filter_map(|f| f.reference)
                 .map(|pixel| self.pinhole.ray(to_vector(pixel)))
@@ -577,7 +610,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
     fn check_reference_count(&self) -> Result<(), CalibrationError> {
         let found = self
             .frames
-            .items()
+            .view()
             .iter()
             .filter(|f| f.reference.is_some())
             .count();
@@ -601,7 +634,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         let mut count = 0.0;
         let mut sum = Vector2::<f64>::zeros();
         let mut squares = nalgebra::Matrix2::<f64>::zeros();
-        for reference in self.frames.items().iter().filter_map(|f| f.reference) {
+        for reference in self.frames.view().iter().filter_map(|f| f.reference) {
             let pixel = to_vector(reference);
             count += 1.0;
             sum += pixel;
@@ -610,7 +643,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         let points = || CalibrationError::DegenerateConic {
             points: u32::try_from(
                 self.frames
-                    .items()
+                    .view()
                     .iter()
                     .filter(|f| f.reference.is_some())
                     .count(),
@@ -638,7 +671,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         let mut highest = f64::NEG_INFINITY;
         for frame in self
             .frames
-            .items()
+            .view()
             .iter()
             .filter(|f| f.reference.is_some() || f.part.is_some())
         {
@@ -672,7 +705,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         let mut above = Vector2::zeros();
         let mut below = Vector2::zeros();
         let mut first = None;
-        for frame in self.frames.items() {
+        for frame in self.frames.view().iter() {
             let Some(reference) = frame.reference else {
                 continue;
             };
@@ -786,7 +819,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
         let radius = self.header.reference_radius_m;
         let pinhole = self.pinhole;
         let points = || {
-            self.frames.items().iter().flat_map(move |frame| {
+            self.frames.view().iter().flat_map(move |frame| {
                 let (s, c) = libm::sincos(frame.theta);
                 let centre = frame.centre.map(|px| PlanePoint {
                     disc_xy: Vector2::zeros(),
@@ -815,7 +848,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize> SelfCalibrator<FRAMES, E
             .take(self.header.part_feature_count)
         {
             let lines = || {
-                self.frames.items().iter().filter_map(move |frame| {
+                self.frames.view().iter().filter_map(move |frame| {
                     let pixel = frame.part.and_then(|part| part.get(index).copied())?;
                     let m = self
                         .virtual_point(&geometry.rotation, pixel, "part_px")

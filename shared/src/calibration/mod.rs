@@ -29,6 +29,7 @@
 //! - [`cholesky`]: the in-place Cholesky factorisation those solves use.
 //! - [`uncertainty`]: standard deviations of the refined estimate.
 //! - [`store`], [`records`]: bounded, thinned storage of observations (f32 pixels).
+//! - [`frame_store`]: the frames' store, packed at the part's feature count.
 //! - [`calibrator`]: [`SelfCalibrator`], the incremental estimator tying it together.
 
 pub mod calibrator;
@@ -37,6 +38,7 @@ pub mod config;
 pub mod conic;
 pub mod effector;
 pub mod error;
+pub mod frame_store;
 pub mod homography;
 pub mod model;
 pub mod normal_blocks;

@@ -4,8 +4,9 @@
 
 use nalgebra::{Matrix2x3, Matrix3, Rotation3, SMatrix, Vector2, Vector3};
 
+use super::frame_store::FrameView;
 use super::pinhole::Pinhole;
-use super::records::{to_vector, EffectorRecord, FrameRecord};
+use super::records::{to_vector, EffectorRecord};
 use crate::observation::MAX_PART_FEATURES;
 
 /// Camera pose, part feature points and `base_from_disc`.
@@ -68,13 +69,13 @@ pub enum OtherBlock {
 
 /// Calls `visit` for every stored image point with the given reference radius.
 pub fn for_each_observation(
-    frames: &[FrameRecord],
+    frames: FrameView<'_>,
     effectors: &[EffectorRecord],
     feature_count: usize,
     reference_radius_m: f64,
     mut visit: impl FnMut(&Observation),
 ) {
-    for frame in frames {
+    for frame in frames.iter() {
         if let Some(centre) = frame.centre {
             visit(&Observation {
                 pixel: to_vector(centre),
@@ -89,7 +90,7 @@ pub fn for_each_observation(
                 target: Target::KnownDisc(p_disc),
             });
         }
-        if let Some(part) = &frame.part {
+        if let Some(part) = frame.part {
             for (index, pixel) in part.iter().take(feature_count).enumerate() {
                 visit(&Observation {
                     pixel: to_vector(*pixel),

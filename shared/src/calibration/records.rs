@@ -4,7 +4,7 @@
 
 use nalgebra::{Vector2, Vector3};
 
-use crate::observation::{EffectorSighting, PixelPoint, EFFECTOR_POINTS, MAX_PART_FEATURES};
+use crate::observation::{EffectorSighting, PixelPoint, EFFECTOR_POINTS};
 
 /// A pixel stored in single precision.
 pub type PixelF32 = [f32; 2];
@@ -19,15 +19,16 @@ pub fn to_vector(pixel: PixelF32) -> Vector2<f64> {
     Vector2::new(f64::from(u), f64::from(v))
 }
 
-/// One frame's detections of the disc centre, the reference point and the part.
+/// One frame's detections of the disc centre, the reference point and the part, as the
+/// calibrator reads them back from its [`super::frame_store::FrameStore`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FrameRecord {
+pub struct FrameRecord<'a> {
     /// Conveyor angle theta (f64: it is unwrapped and may grow large).
     pub theta: f64,
     pub centre: Option<PixelF32>,
     pub reference: Option<PixelF32>,
-    /// Features `0..part_feature_count` are meaningful; the rest are zero.
-    pub part: Option<[PixelF32; MAX_PART_FEATURES]>,
+    /// The part's features, exactly `part_feature_count` of them.
+    pub part: Option<&'a [PixelF32]>,
 }
 
 /// One sighting of the two end-effector points: images and base-frame positions.

@@ -11,16 +11,17 @@
 
 use super::config::CalibrationConfig;
 use super::error::CalibrationError;
+use super::frame_store::FrameView;
 use super::model::{for_each_observation, WorkcellModel};
 use super::normal_blocks::{Freedom, MarginalCovariance, NormalBlocks};
 use super::pinhole::Pinhole;
-use super::records::{EffectorRecord, FrameRecord};
+use super::records::EffectorRecord;
 
 /// What the refinement sees: stored observations and how to treat them.
 #[derive(Clone, Copy)]
 pub struct Problem<'a> {
     pub pinhole: Pinhole,
-    pub frames: &'a [FrameRecord],
+    pub frames: FrameView<'a>,
     pub effectors: &'a [EffectorRecord],
     pub feature_count: usize,
     pub reference_radius_m: f64,
@@ -182,6 +183,8 @@ fn minimise(
 
 /// Robust scale of the residual norms from a fixed histogram (memory independent of the
 /// number of points): median of a 2-D Gaussian residual's norm is 1.1774 sigma.
+/// Out of line, so that its histogram is not in `fit`'s frame under `minimise`.
+#[inline(never)]
 fn robust_sigma(problem: &Problem<'_>, model: &WorkcellModel, nominal_sigma: f64) -> f64 {
     const BINS: usize = 128;
     const RANGE_SIGMAS: f64 = 32.0;

@@ -8,44 +8,95 @@
 
 use heapless::Vec;
 
+/// What to do with one offered item under the thinning rule.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Admission {
+    /// Not on the current stride: drop it.
+    Skip,
+    /// On the stride and there is room: keep it.
+    Keep,
+    /// The store is full: drop every other kept item first (keep positions 0, 2, 4 ...),
+    /// then keep this one if it is still on the (doubled) stride.
+    Halve { keep: bool },
+}
+
+/// The thinning rule itself, shared by every store that thins (see the module doc).
+#[derive(Debug, Clone, Copy)]
+pub struct ThinningSchedule {
+    stride: u32,
+    offered: u32,
+}
+
+impl ThinningSchedule {
+    pub const fn new() -> Self {
+        Self {
+            stride: 1,
+            offered: 0,
+        }
+    }
+
+    /// Decides the next offered item's fate for a store holding `len` of `capacity`.
+    pub fn admit(&mut self, len: usize, capacity: usize) -> Admission {
+        let index = self.offered;
+        self.offered = self.offered.saturating_add(1);
+        if capacity == 0 || !index.is_multiple_of(self.stride) {
+            return Admission::Skip;
+        }
+        if len >= capacity {
+            self.stride = self.stride.saturating_mul(2);
+            return Admission::Halve {
+                keep: index.is_multiple_of(self.stride),
+            };
+        }
+        Admission::Keep
+    }
+
+    /// How many items were offered in total (kept or not).
+    pub fn offered(&self) -> u32 {
+        self.offered
+    }
+}
+
+impl Default for ThinningSchedule {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// An evenly thinned subsample of at most `N` items.
 #[derive(Debug, Clone)]
 pub struct ThinningStore<T, const N: usize> {
     items: Vec<T, N>,
-    stride: u32,
-    offered: u32,
+    schedule: ThinningSchedule,
 }
 
 impl<T: Copy, const N: usize> ThinningStore<T, N> {
     pub const fn new() -> Self {
         Self {
             items: Vec::new(),
-            stride: 1,
-            offered: 0,
+            schedule: ThinningSchedule::new(),
         }
     }
 
     /// Offer one item; it is kept if it falls on the current stride.
     pub fn offer(&mut self, item: T) {
-        let index = self.offered;
-        self.offered = self.offered.saturating_add(1);
-        if N == 0 || !index.is_multiple_of(self.stride) {
-            return;
-        }
-        if self.items.is_full() {
-            let mut position = 0usize;
-            self.items.retain(|_| {
-                let keep = position.is_multiple_of(2);
-                position += 1;
+        let keep = match self.schedule.admit(self.items.len(), N) {
+            Admission::Skip => false,
+            Admission::Keep => true,
+            Admission::Halve { keep } => {
+                let mut position = 0usize;
+                self.items.retain(|_| {
+                    let kept = position.is_multiple_of(2);
+                    position += 1;
+                    kept
+                });
                 keep
-            });
-            self.stride = self.stride.saturating_mul(2);
-            if !index.is_multiple_of(self.stride) {
-                return;
             }
+        };
+        if keep {
+            // Fails only for N == 1, where halving frees nothing: the item is dropped.
+            let _ = self.items.push(item);
         }
-        // Cannot fail: either there was room or the compaction above freed half the store.
-        let _ = self.items.push(item);
     }
 
     pub fn items(&self) -> &[T] {
@@ -54,7 +105,7 @@ impl<T: Copy, const N: usize> ThinningStore<T, N> {
 
     /// How many items were offered in total (kept or not).
     pub fn offered(&self) -> u32 {
-        self.offered
+        self.schedule.offered()
     }
 }
 

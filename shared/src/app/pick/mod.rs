@@ -66,12 +66,18 @@ use crate::protocol::{
 use crate::robot::{DriveOptions, JointTrig, JointVector, Puma560, SIMULATOR_COULOMB_WIDTH};
 
 /// The controller's calibrator, the same in the firmware and in the simulator:
-/// 256 frames and 128 sightings of the marks (about 32 KiB), enough to keep
-/// every frame of a calibration (about 215 in 43 s at 5 Hz) and every sighting
-/// instead of thinning them. The store's size is the pick's accuracy: 96 frames
-/// and 64 sightings (13 KiB) left the part 7.1 mm and 0.80 deg off at the 95th
-/// percentile over 1,000 workcells, 256 and 128 4.2 mm and 0.43 deg.
-pub type PickCalibrator = SelfCalibrator<256, 128>;
+/// 256 frames and 128 sightings of the marks, enough to keep every frame of a
+/// calibration (about 215 in 43 s at 5 Hz) and every sighting instead of
+/// thinning them. The store's size is the pick's accuracy: 96 frames and 64
+/// sightings left the part 7.1 mm and 0.80 deg off at the 95th percentile over
+/// 1,000 workcells, 256 and 128 4.2 mm and 0.43 deg. Frames are packed with a
+/// budget of [`PICK_PIXELS_PER_FRAME`] pixels a frame on average (17.5 KiB in
+/// all): all 256 for a part of up to three features, 128 for one of eight.
+pub type PickCalibrator = SelfCalibrator<256, 128, PICK_PIXELS_PER_FRAME>;
+
+/// The pick calibrator's pixel budget a frame: the disc centre, the reference
+/// point and three part features (the experiments' parts have three).
+pub const PICK_PIXELS_PER_FRAME: usize = 5;
 
 /// Events one control tick may leave for the pairer and the worker (a trigger
 /// and a job request at most; room for one tick not drained).
