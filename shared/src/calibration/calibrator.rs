@@ -352,6 +352,9 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
 
     /// [`SelfCalibrator::estimate`] with the standard deviations of its parameters (from the
     /// Gauss-Newton covariance at the optimum, scaled by the measured reprojection noise).
+    /// Out of line: the caller's frame lies under the bundle adjustment's (the
+    /// firmware's deepest stack), and this one's locals only have to.
+    #[inline(never)]
     pub fn estimate_with_uncertainty(
         &mut self,
     ) -> Result<(CalibrationResult, EstimateUncertainty), CalibrationError> {

@@ -48,6 +48,9 @@ pub fn yaw_at_azimuth(start: &ArcPoint<f32>, azimuth: f32) -> f32 {
 /// top, spread over the disc's near half) that the arm can reach gripper-down and
 /// the camera sees both marks from, in an order that keeps the moves short.
 /// `start` is the arm's start pose (for the wrist's yaw), `q_seed` its joints.
+/// Out of line, so that its temporaries (inverse kinematics) are not in the
+/// estimate job's frame, which lies under the bundle adjustment.
+#[inline(never)]
 pub fn calibration_poses(
     estimate: &CellEstimate,
     camera: &CameraIntrinsics,
