@@ -37,4 +37,6 @@ pub mod protocol;
 pub mod robot;
 
 #[cfg(test)]
+mod test_cell;
+#[cfg(test)]
 mod test_rng;

@@ -146,26 +146,9 @@ impl FramePairer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::protocol::JOINTS;
 
     fn config(conveyor_counts_per_rev: u32, part_feature_count: u8) -> CellConfig {
-        CellConfig {
-            image_width_px: 256,
-            image_height_px: 256,
-            f_px: 300.0,
-            cx_px: 128.0,
-            cy_px: 128.0,
-            pixel_sigma_px: 0.5,
-            reference_radius_m: 0.4,
-            part_feature_count,
-            conveyor_counts_per_rev,
-            conveyor_counter_bits: 16,
-            joint_counts_per_rad: [10_000.0; JOINTS],
-            disc_height_in_base_m: None,
-            drop_off_base_m: [0.0, 0.55, 0.3],
-            camera_period_ms: 200,
-            telemetry_period_ticks: 1,
-        }
+        crate::test_cell::test_cell_config(conveyor_counts_per_rev, part_feature_count)
     }
 
     #[test]
