@@ -31,7 +31,7 @@ const CONTROL_CYCLE_LIMIT: u32 = 30_000;
 /// RAM (37,832 bytes: `scripts/build-firmware`) leaves 27,704 bytes of stack.
 /// The deepest stack seen is the worker's final estimate (the bundle
 /// adjustment over the 256-frame store) preempted by the link and the control
-/// loop: 22,664 to 24,048 bytes over runs of one image (how deep a run gets
+/// loop: 22,664 to 24,048 bytes over five runs of one image (how deep a run gets
 /// depends on where the interrupts land in the bundle adjustment). It was
 /// 32,832 before the tasks kept their decoding, pairing and configuration
 /// work out of their poll frames and the bundle adjustment's step and
