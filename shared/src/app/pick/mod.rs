@@ -71,7 +71,7 @@ use crate::robot::{DriveOptions, JointTrig, JointVector, Puma560, SIMULATOR_COUL
 /// thinning them. The store's size is the pick's accuracy: 96 frames and 64
 /// sightings left the part 7.1 mm and 0.80 deg off at the 95th percentile over
 /// 1,000 workcells, 256 and 128 4.2 mm and 0.43 deg. Frames are packed with a
-/// budget of [`PICK_PIXELS_PER_FRAME`] pixels a frame on average (17.5 KiB in
+/// budget of [`PICK_PIXELS_PER_FRAME`] pixels a frame on average (17.7 KiB in
 /// all): all 256 for a part of up to three features, 128 for one of eight.
 pub type PickCalibrator = SelfCalibrator<256, 128, PICK_PIXELS_PER_FRAME>;
 

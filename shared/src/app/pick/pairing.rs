@@ -68,12 +68,21 @@ impl FramePairer {
     }
 
     pub fn new(conveyor_counts_per_rev: u32, part_feature_count: usize) -> Self {
-        Self {
+        let mut pairer = Self {
             latch: TriggerLatch::new(),
             kinematics: Puma560::new(),
-            conveyor_counts_per_rev: conveyor_counts_per_rev.max(1),
-            part_feature_count,
-        }
+            conveyor_counts_per_rev: 1,
+            part_feature_count: 0,
+        };
+        pairer.set_cell(conveyor_counts_per_rev, part_feature_count);
+        pairer
+    }
+
+    /// The cell's part of the pairer, the same for a new and a reconfigured one.
+    fn set_cell(&mut self, conveyor_counts_per_rev: u32, part_feature_count: usize) {
+        self.latch = TriggerLatch::new();
+        self.conveyor_counts_per_rev = conveyor_counts_per_rev.max(1);
+        self.part_feature_count = part_feature_count;
     }
 
     /// The pairer for a new cell `config`, in place: the same as a new
@@ -82,9 +91,10 @@ impl FramePairer {
     /// reconfigures this way so that the kinematics (2.3 KB, and the 2.7 KB
     /// frame that builds them) are not on its stack again.
     pub fn reconfigure(&mut self, config: &CellConfig) {
-        self.latch = TriggerLatch::new();
-        self.conveyor_counts_per_rev = config.conveyor_counts_per_rev.max(1);
-        self.part_feature_count = usize::from(config.part_feature_count);
+        self.set_cell(
+            config.conveyor_counts_per_rev,
+            usize::from(config.part_feature_count),
+        );
     }
 
     /// The control loop fired the camera: remember the encoders.
