@@ -446,3 +446,36 @@ fn a_frozen_integral_keeps_what_it_learnt() {
     controller.step(&model, &q, &qd, &reference, 1e-3);
     assert!(controller.error_integral().x.abs() > learnt.x.abs());
 }
+
+/// The joint speeds a reference asks for (`ControlOutput::reference_joint_speed`,
+/// the pick's speed guard) are the ones that produce its twist: `J qd_ref`
+/// equals the reference twist away from singularities, and scale with it.
+#[test]
+fn the_reference_joint_speed_produces_the_reference_twist() {
+    let model = controller_model(1.0);
+    let circle = task_circle();
+    let (q0, qd0) = start_on(&Puma560::<f64>::new(), &circle.reference(0.0));
+    let (q, qd) = (q0.cast::<f32>(), qd0.cast::<f32>());
+    let mut controller = TaskSpaceController::new(controller_config(true)).unwrap();
+    let reference = cast_reference(&circle.reference(0.3));
+    let output = controller.step(&model, &q, &qd, &reference, 1e-3);
+    assert!(output.fallback.is_none());
+    let configuration = TaskSpaceModel::configuration(&model, &q);
+    let kinematics = TaskSpaceModel::task_kinematics(&model, &configuration, &qd);
+    let twist = kinematics.jacobian * output.reference_joint_speed;
+    assert!(
+        (twist - reference.twist).norm() < 1e-4 * (1.0 + reference.twist.norm()),
+        "{twist:?} vs {:?}",
+        reference.twist
+    );
+    let mut faster = reference;
+    faster.twist *= 3.0;
+    let fast = controller.step(&model, &q, &qd, &faster, 1e-3);
+    assert!(
+        (fast.reference_joint_speed - output.reference_joint_speed * 3.0).norm()
+            < 1e-4 * (1.0 + fast.reference_joint_speed.norm())
+    );
+    // A hold (NaN input) asks for nothing.
+    let held = controller.step(&model, &q.map(|_| f32::NAN), &qd, &reference, 1e-3);
+    assert_eq!(held.reference_joint_speed, Joints::zeros());
+}

@@ -10,7 +10,7 @@
 
 use nalgebra::{convert, Isometry3, RealField, Vector3, Vector6};
 
-use super::dls::{solve_damped, DampingConfig};
+use super::dls::{DampedFactor, DampedSolution, DampingConfig};
 use super::error::{ControlError, ControlInput, ControlStage};
 use super::gains::{AxisGains, TaskGains};
 use super::model::{Joints, TaskKinematics, TaskSpaceModel};
@@ -87,6 +87,11 @@ pub struct ControlOutput<T> {
     pub tau: Joints<T>,
     /// Joint accelerations commanded to the RNEA pass (zero in a hold).
     pub qdd: Joints<T>,
+    /// `J^+ Yd_dot`: the joint speeds the reference's twist asks for at the
+    /// measured configuration (damped like the acceleration solve; zero in a
+    /// hold). A reference that asks a joint for more than its limit is a
+    /// reference no plan should have made.
+    pub reference_joint_speed: Joints<T>,
     /// `p_d - p` in the base frame (m) (zero in a hold: not evaluated).
     pub position_error: Vector3<T>,
     /// `log(R_d R^T)` in the base frame (rad) (zero in a hold).
@@ -254,11 +259,15 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
             + kp.component_mul(&error)
             + ki.component_mul(&integral);
 
-        let solution = solve_damped(
-            &jacobian,
-            &(commanded_acceleration - jdot_qd),
-            &self.config.damping,
-        )?;
+        let factor = DampedFactor::new(&jacobian, &self.config.damping)?;
+        let solution = DampedSolution {
+            x: factor.solve(&(commanded_acceleration - jdot_qd)),
+            manipulability: factor.manipulability,
+            damping_squared: factor.damping_squared,
+        };
+        // The joint speeds the reference itself asks for, on the same factor:
+        // the caller's guard that no reference exceeds a joint's limit.
+        let reference_joint_speed = factor.solve(&reference.twist);
         if !all_finite(&solution.x) {
             return Err(ControlError::NonFiniteResult(
                 ControlStage::JointAccelerationSolve,
@@ -278,6 +287,7 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
         Ok(ControlOutput {
             tau,
             qdd: solution.x,
+            reference_joint_speed,
             position_error,
             orientation_error,
             manipulability: solution.manipulability,
@@ -329,6 +339,7 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
         ControlOutput {
             tau,
             qdd: Joints::zeros(),
+            reference_joint_speed: Joints::zeros(),
             position_error: Vector3::zeros(),
             orientation_error: Vector3::zeros(),
             manipulability: T::zero(),

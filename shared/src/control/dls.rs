@@ -58,62 +58,95 @@ pub struct DampedSolution<T> {
     pub damping_squared: T,
 }
 
-/// Solves `J x = b` in the damped least-squares sense.
-///
-/// One Cholesky factorisation of `J J^T` gives the manipulability as the
-/// product of its diagonal (no SVD needed on the M4F); a second one, of the
-/// damped matrix, is done only inside the damping band. Returns
-/// [`ControlError::SolveFailed`] if the damped matrix is not positive definite
-/// (only possible with non-finite input or `max_damping = 0` at a singularity).
+/// `J J^T + lambda^2 I` factorised once, for as many right-hand sides as the
+/// caller has: Eq 23 solves for the joint accelerations and, on the same
+/// factor, for the joint speeds its reference asks for (the speed guard).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DampedFactor<T> {
+    lower: [[T; 6]; 6],
+    diagonal: [T; 6],
+    /// The columns of `J` (`x = J^T y`).
+    columns: [[T; 6]; 6],
+    /// Manipulability `|det J| = sqrt(det(J J^T))`.
+    pub manipulability: T,
+    /// The damping `lambda^2` that was applied (0 away from singularities).
+    pub damping_squared: T,
+}
+
+impl<T: RealField + Copy> DampedFactor<T> {
+    /// Factorises `J J^T`, damped inside the manipulability band.
+    ///
+    /// One LDL^T factorisation of `J J^T` gives the manipulability as the
+    /// product of its diagonal (no SVD needed on the M4F); a second one, of
+    /// the damped matrix, is done only inside the damping band. Returns
+    /// [`ControlError::SolveFailed`] if the damped matrix is not positive
+    /// definite (only possible with non-finite input or `max_damping = 0` at
+    /// a singularity).
+    pub fn new(jacobian: &Matrix6<T>, config: &DampingConfig<T>) -> Result<Self, ControlError> {
+        // Plain arrays and a square-root-free LDL^T: the firmware is built for
+        // size, and there nalgebra's generic product and `Cholesky` cost 5,300
+        // instructions on the M4F (bench-m4).
+        let rows = rows6(jacobian);
+        let jjt = gram(&rows);
+        // Factorised in place: returning a factor by value costs copies on the
+        // M4F that are as dear as the arithmetic.
+        let mut lower = jjt;
+        let mut diagonal = [T::zero(); 6];
+        let undamped = factor_in_place(&mut lower, &mut diagonal);
+        let manipulability = if undamped {
+            let [d0, d1, d2, d3, d4, d5] = diagonal;
+            (d0 * d1 * d2 * d3 * d4 * d5).sqrt()
+        } else {
+            T::zero()
+        };
+        let damping_squared = config.damping_squared(manipulability);
+        if !undamped || damping_squared != T::zero() {
+            lower = jjt;
+            for (i, row) in lower.iter_mut().enumerate() {
+                if let Some(d) = row.get_mut(i) {
+                    *d += damping_squared;
+                }
+            }
+            if !factor_in_place(&mut lower, &mut diagonal) {
+                return Err(ControlError::SolveFailed);
+            }
+        }
+        Ok(Self {
+            lower,
+            diagonal,
+            columns: (*jacobian).into(),
+            manipulability,
+            damping_squared,
+        })
+    }
+
+    /// `x = J^T (J J^T + lambda^2 I)^-1 b`.
+    pub fn solve(&self, b: &Vector6<T>) -> Vector6<T> {
+        let y = solve_factored(&self.lower, &self.diagonal, &(*b).into());
+        // x = J^T y: element c is column c of J dotted with y.
+        let [c0, c1, c2, c3, c4, c5] = &self.columns;
+        Vector6::new(
+            dot6(c0, &y),
+            dot6(c1, &y),
+            dot6(c2, &y),
+            dot6(c3, &y),
+            dot6(c4, &y),
+            dot6(c5, &y),
+        )
+    }
+}
+
+/// Solves `J x = b` in the damped least-squares sense (see [`DampedFactor`]).
 pub fn solve_damped<T: RealField + Copy>(
     jacobian: &Matrix6<T>,
     b: &Vector6<T>,
     config: &DampingConfig<T>,
 ) -> Result<DampedSolution<T>, ControlError> {
-    // Plain arrays and a square-root-free LDL^T: the firmware is built for
-    // size, and there nalgebra's generic product and `Cholesky` cost 5,300
-    // instructions on the M4F (bench-m4).
-    let rows = rows6(jacobian);
-    let jjt = gram(&rows);
-    // Factorised in place: returning a factor by value costs copies on the
-    // M4F that are as dear as the arithmetic.
-    let mut lower = jjt;
-    let mut diagonal = [T::zero(); 6];
-    let undamped = factor_in_place(&mut lower, &mut diagonal);
-    let manipulability = if undamped {
-        let [d0, d1, d2, d3, d4, d5] = diagonal;
-        (d0 * d1 * d2 * d3 * d4 * d5).sqrt()
-    } else {
-        T::zero()
-    };
-    let damping_squared = config.damping_squared(manipulability);
-    if !undamped || damping_squared != T::zero() {
-        lower = jjt;
-        for (i, row) in lower.iter_mut().enumerate() {
-            if let Some(d) = row.get_mut(i) {
-                *d += damping_squared;
-            }
-        }
-        if !factor_in_place(&mut lower, &mut diagonal) {
-            return Err(ControlError::SolveFailed);
-        }
-    }
-    let y = solve_factored(&lower, &diagonal, &(*b).into());
-    // x = J^T y: element c is column c of J dotted with y.
-    let columns: [[T; 6]; 6] = (*jacobian).into();
-    let [c0, c1, c2, c3, c4, c5] = columns;
-    let x = Vector6::new(
-        dot6(&c0, &y),
-        dot6(&c1, &y),
-        dot6(&c2, &y),
-        dot6(&c3, &y),
-        dot6(&c4, &y),
-        dot6(&c5, &y),
-    );
+    let factor = DampedFactor::new(jacobian, config)?;
     Ok(DampedSolution {
-        x,
-        manipulability,
-        damping_squared,
+        x: factor.solve(b),
+        manipulability: factor.manipulability,
+        damping_squared: factor.damping_squared,
     })
 }
 

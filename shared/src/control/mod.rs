@@ -23,7 +23,7 @@ pub mod trajectory;
 pub mod trig;
 
 pub use computed_torque::{ControlOutput, ControllerConfig, TaskReference, TaskSpaceController};
-pub use dls::{solve_damped, DampedSolution, DampingConfig};
+pub use dls::{solve_damped, DampedFactor, DampedSolution, DampingConfig};
 pub use error::{ControlError, ControlInput, ControlStage};
 pub use gains::{AxisGains, TaskGains};
 pub use model::{Joints, TaskKinematics, TaskSpaceModel};

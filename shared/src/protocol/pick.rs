@@ -119,6 +119,11 @@ pub enum FaultCause {
     /// The motion reference leapt (a motion handed over to one that starts
     /// elsewhere): refused, and the arm stopped from the last good reference.
     ReferenceJump,
+    /// Before the calibration was accepted, a motion would have taken the
+    /// gripper further below the heights at which the camera saw its marks
+    /// than the pick allows (`PickSettings::max_descent_step_m`): the
+    /// estimate it was planned from is not trusted that far.
+    BelowSafeHeight,
 }
 
 /// A snapshot of the controller's estimates, sent every `telemetry_period_ticks`.

@@ -113,15 +113,28 @@ pub struct DiscView {
     pub reference_px: Option<[f32; 2]>,
 }
 
+/// Where the camera saw the gripper's marks, from the encoders latched at
+/// the trigger: the marks' direction round the base axis (the disc is that
+/// way, roughly) and their height. A height at which the camera saw the
+/// marks is one the arm has been at, in the camera's view, before anything
+/// was calibrated: the pick descends from such heights in bounded steps.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sighting {
+    /// Unit vector (base frame, horizontal) towards the first mark.
+    pub direction_xy: [f32; 2],
+    /// The first mark's height in the base frame, m.
+    pub mark_z_m: f32,
+}
+
 /// From the pairer and the worker back to the control loop.
 #[derive(Debug, Clone, PartialEq)]
 #[allow(clippy::large_enum_variant)]
 pub enum VisionNews {
-    /// A frame was paired with its trigger; `sighting_xy` is the unit
-    /// direction (base frame, horizontal) of the effector mark it saw, if any;
-    /// `view` what it saw of the disc, for the view monitor.
+    /// A frame was paired with its trigger; `sighting` where the effector
+    /// marks it saw were (from the encoders latched at the trigger), if it
+    /// saw them; `view` what it saw of the disc, for the view monitor.
     Paired {
-        sighting_xy: Option<[f32; 2]>,
+        sighting: Option<Sighting>,
         view: Option<DiscView>,
     },
     /// A frame matched no pending trigger (late, repeated or unknown).

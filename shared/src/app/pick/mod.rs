@@ -38,7 +38,7 @@ use self::brake::JointBrake;
 use self::cell::{Cell, ConfigError};
 use self::estimate::CellEstimate;
 use self::handoff::{
-    ControlEvent, JobOutcome, JobRequest, JobResult, JobTicket, TriggerRecord, VisionNews,
+    ControlEvent, JobOutcome, JobRequest, JobResult, JobTicket, Sighting, TriggerRecord, VisionNews,
 };
 use self::jobs::{yaw_at_azimuth, ConveyorSnapshot, MAX_CALIBRATION_POSES};
 use self::motion::{height_profile, Motion};
@@ -48,7 +48,7 @@ use self::view_monitor::{ViewLimits, ViewMonitor};
 use self::worker::PickWorker;
 use super::joint_observer::JointObserver;
 use super::joint_speed::JointSpeedWindow;
-use super::tool::{tool_point_base, TOOL_LENGTH_M};
+use super::tool::{tool_point_base, EFFECTOR_MARKS_FLANGE_M, TOOL_LENGTH_M};
 use crate::calibration::SelfCalibrator;
 use crate::control::{
     ControllerConfig, TaskKinematics, TaskReference, TaskSpaceController, TaskSpaceModel,
@@ -83,6 +83,9 @@ pub const PICK_PIXELS_PER_FRAME: usize = 5;
 /// and a job request at most; room for one tick not drained).
 pub const MAX_CONTROL_EVENTS: usize = 4;
 
+/// How far the gripper's marks sit below the flange with the gripper down.
+const MARK_BELOW_FLANGE_M: f32 = EFFECTOR_MARKS_FLANGE_M[0][2] as f32;
+
 /// Messages one control tick may emit besides its actuator command.
 pub const MAX_TICK_MESSAGES: usize = 3;
 
@@ -99,6 +102,10 @@ enum Step {
     EstimateFinal,
     Locate,
     Intercept,
+    /// The conveyor left the intercept's prediction: the arm comes to rest,
+    /// returns to where the part was first located from, and locates it again.
+    InterceptAbandoned,
+    Relocate,
     Track,
     Descend,
     GraspSettle,
@@ -123,7 +130,7 @@ impl Step {
             }
             Self::CalibrateMove(_) | Self::CalibrateDwell(_) => PickPhase::CalibrateBase,
             Self::EstimatePreliminary | Self::EstimateFinal => PickPhase::Estimating,
-            Self::Locate => PickPhase::Locate,
+            Self::Locate | Self::InterceptAbandoned | Self::Relocate => PickPhase::Locate,
             Self::Intercept => PickPhase::Intercept,
             Self::Track => PickPhase::Track,
             Self::Descend => PickPhase::Descend,
@@ -149,6 +156,8 @@ impl Step {
                 | Self::CalibrateDwell(_)
                 | Self::Locate
                 | Self::Intercept
+                | Self::InterceptAbandoned
+                | Self::Relocate
                 | Self::Track
                 | Self::Descend
         )
@@ -159,7 +168,13 @@ impl Step {
     fn watches_view(self) -> bool {
         matches!(
             self,
-            Self::Locate | Self::Intercept | Self::Track | Self::Descend | Self::GraspSettle
+            Self::Locate
+                | Self::Intercept
+                | Self::InterceptAbandoned
+                | Self::Relocate
+                | Self::Track
+                | Self::Descend
+                | Self::GraspSettle
         )
     }
 
@@ -267,6 +282,20 @@ pub struct PickController {
     last_command: Option<ActuatorCommand>,
     /// Frames the link's decoder refused, for telemetry (set by the link's owner).
     link_frames_rejected: u32,
+    /// The worst `|J^+ Yd_dot| / limit` over the joints at the last period.
+    reference_speed_ratio: f32,
+    /// Intercepts planned for the part so far.
+    intercept_attempts: u8,
+    /// Where the arm stood when the part was first located (the last
+    /// calibration pose): an abandoned intercept returns there to plan again.
+    locate_pose: Option<ArcPoint<f32>>,
+    /// The lowest flange height known to be clear: where the arm started,
+    /// until the camera has seen the marks; then the lowest height at which
+    /// it saw them.
+    known_clear_flange_z: f32,
+    seen_marks: bool,
+    /// The final calibration was accepted (the pick may go down to the part).
+    calibration_accepted: bool,
 }
 
 /// Eq 23's gains for the pick (see [`ControllerConfig::puma560`]).
@@ -419,6 +448,12 @@ impl PickController {
             integral_reset_s: 0.0,
             last_command: None,
             link_frames_rejected: 0,
+            reference_speed_ratio: 0.0,
+            intercept_attempts: 0,
+            locate_pose: None,
+            known_clear_flange_z: f32::INFINITY,
+            seen_marks: false,
+            calibration_accepted: false,
         })
     }
 
@@ -448,7 +483,7 @@ impl PickController {
     /// here depends on the time between).
     pub fn on_news(&mut self, news: &VisionNews) {
         match news {
-            VisionNews::Paired { sighting_xy, view } => {
+            VisionNews::Paired { sighting, view } => {
                 self.counters.frames_paired = self.counters.frames_paired.saturating_add(1);
                 self.last_paired_s = self.now_s;
                 if let (Some(view), true) = (view, self.step.watches_view()) {
@@ -456,11 +491,8 @@ impl PickController {
                         self.raise(cause);
                     }
                 }
-                if let Some([x, y]) = sighting_xy {
-                    self.counters.effector_sightings =
-                        self.counters.effector_sightings.saturating_add(1);
-                    let [sx, sy] = self.sighting_direction;
-                    self.sighting_direction = [sx + x, sy + y];
+                if let Some(sighting) = sighting {
+                    self.on_sighting(sighting);
                 }
             }
             VisionNews::Unpaired => {
@@ -471,6 +503,29 @@ impl PickController {
             }
             VisionNews::Result(result) => self.on_result(result),
         }
+    }
+
+    /// The camera saw the marks: the disc is that way round the base axis,
+    /// and the flange has been this low in the camera's view.
+    fn on_sighting(&mut self, sighting: &Sighting) {
+        self.counters.effector_sightings = self.counters.effector_sightings.saturating_add(1);
+        let [x, y] = sighting.direction_xy;
+        let [sx, sy] = self.sighting_direction;
+        self.sighting_direction = [sx + x, sy + y];
+        // The marks sit MARK_BELOW_FLANGE_M under the flange, gripper down.
+        let flange_z = sighting.mark_z_m + MARK_BELOW_FLANGE_M;
+        if flange_z.is_finite() {
+            if !self.seen_marks || flange_z < self.known_clear_flange_z {
+                self.known_clear_flange_z = flange_z;
+            }
+            self.seen_marks = true;
+        }
+    }
+
+    /// The lowest flange height a motion may go to before the calibration
+    /// is accepted (`PickSettings::max_descent_step_m` below the known-clear height).
+    fn safe_floor_z(&self) -> f32 {
+        self.known_clear_flange_z - self.settings.max_descent_step_m
     }
 
     fn on_result(&mut self, result: &JobResult) {
@@ -642,6 +697,8 @@ impl PickController {
             self.supervise_speed(&qd);
         }
         self.guard_reach();
+        self.guard_intercept(part.as_ref());
+        self.guard_height();
         let tau = self.control(
             &q,
             &q_measured,
@@ -700,6 +757,7 @@ impl PickController {
             self.raise(FaultCause::ControlFailure);
             self.engage_brake();
         }
+        self.guard_reference_speed(&output.reference_joint_speed);
         if output.saturated {
             self.counters.saturated_ticks = self.counters.saturated_ticks.saturating_add(1);
         }
@@ -771,6 +829,12 @@ impl PickController {
         self.reference = TaskState::at_rest(position, yaw);
         self.motion = Motion::Hold(self.reference);
         self.last_paired_s = self.now_s;
+        if !self.seen_marks {
+            // Until the camera has seen the marks: where the arm stands, or
+            // the travel height (declared clear of any disc and part) if lower.
+            let travel_z = self.settings.search_tool_height_m + TOOL_LENGTH_M as f32;
+            self.known_clear_flange_z = position.z.min(travel_z);
+        }
         self.enter(Step::SearchApproach);
     }
 
@@ -864,6 +928,90 @@ impl PickController {
         }
     }
 
+    /// No reference may ask a joint for more than its speed limit: the plans
+    /// check their paths, but the live parts of a reference (the intercept's
+    /// correction, following the part) are checked here, every period, at
+    /// the measured configuration. A stop or an abandoned intercept is
+    /// exempt: it slows the arm from a start scaled within the limits.
+    fn guard_reference_speed(&mut self, qd_reference: &JointVector<f32>) {
+        let ratio = qd_reference
+            .iter()
+            .zip(self.model.joint_limits().velocity_max.iter())
+            .map(|(v, max)| v.abs() / *max)
+            .fold(
+                0.0_f32,
+                |worst, r| if at_most(r, worst) { worst } else { r },
+            );
+        self.reference_speed_ratio = ratio;
+        let decelerating = matches!(
+            self.step,
+            Step::Stopping | Step::Faulted | Step::InterceptAbandoned
+        );
+        if !decelerating && !at_most(ratio, self.settings.reference_speed_factor) {
+            self.raise(FaultCause::JointOverspeed);
+        }
+    }
+
+    /// The intercept's live correction absorbs small departures of the part
+    /// from the plan's prediction; a conveyor that stopped, sped up or
+    /// reversed under the plan takes the part where the plan never checked
+    /// reach or joint speeds: abandon the intercept and plan again.
+    fn guard_intercept(&mut self, part: Option<&TaskState<f32>>) {
+        let (
+            Step::Intercept,
+            Motion::Intercept {
+                start_s,
+                prediction,
+                ..
+            },
+        ) = (self.step, self.motion)
+        else {
+            return;
+        };
+        let (Some(live), Some(estimate)) = (part, self.estimate.as_ref()) else {
+            return;
+        };
+        let t = self.now_s - start_s;
+        let assumed = estimate.grasp_point(
+            prediction.theta_at_start + prediction.omega * t,
+            prediction.omega,
+            0.0,
+        );
+        let settings = self.settings;
+        let moved = (live.position - assumed.position).norm();
+        let omega_now = self.conveyor_state.map_or(prediction.omega, |c| c.omega);
+        let speed_change = libm::fabsf(omega_now - prediction.omega);
+        let changed = !at_most(
+            speed_change,
+            settings
+                .max_conveyor_speed_change_rad_s
+                .max(settings.max_conveyor_speed_change_fraction * libm::fabsf(prediction.omega)),
+        );
+        if at_most(moved, settings.max_intercept_correction_m) && !changed {
+            return;
+        }
+        if self.intercept_attempts >= settings.max_intercept_attempts {
+            self.raise(FaultCause::PartUnreachable);
+        } else {
+            self.enter(Step::InterceptAbandoned);
+        }
+    }
+
+    /// Before the calibration is accepted, nothing goes more than
+    /// `max_descent_step_m` below the known-clear height (see
+    /// [`Self::safe_floor_z`]), whatever the estimate says.
+    fn guard_height(&mut self) {
+        let before_acceptance = !self.calibration_accepted
+            && !matches!(
+                self.step,
+                Step::Start | Step::Stopping | Step::Faulted | Step::Done
+            );
+        // A centimetre for the arcs' rounding between two admitted heights.
+        if before_acceptance && self.reference.position.z < self.safe_floor_z() - 0.01 {
+            self.raise(FaultCause::BelowSafeHeight);
+        }
+    }
+
     /// Stops trusting the task space: the joint brake takes over for good.
     fn engage_brake(&mut self) {
         if self.brake.is_none() {
@@ -880,6 +1028,16 @@ impl PickController {
 
     fn raise(&mut self, cause: FaultCause) {
         if matches!(self.step, Step::Stopping | Step::Faulted) {
+            return;
+        }
+        if self.step == Step::Done {
+            // The part is placed and the arm holds at rest at its start pose:
+            // there is no motion to stop. The cause is reported; a stop
+            // started here would be a new motion, and a fault must never
+            // start one.
+            if self.fault.is_none() {
+                self.fault = Some(cause);
+            }
             return;
         }
         self.fault = Some(cause);
@@ -968,6 +1126,21 @@ impl PickController {
         if !at_most(lag, settings.tracking_error_limit_m) {
             start = TaskState::at_rest(self.flange_measured, self.tool_yaw_measured);
         }
+        // A reference that asked a joint for more than its limit: the stop
+        // starts from a speed scaled back within the limits.
+        let ratio = self.reference_speed_ratio;
+        let within = 0.9 * settings.reference_speed_factor;
+        if !at_most(ratio, within) {
+            let scale = if ratio.is_finite() {
+                within / ratio
+            } else {
+                0.0
+            };
+            start.velocity *= scale;
+            start.yaw_rate *= scale;
+            start.acceleration = Vector3::zeros();
+            start.yaw_acceleration = 0.0;
+        }
         let speed = start.velocity.norm();
         if !at_most(speed, settings.stop_max_speed_m_s) {
             start.velocity = if speed.is_finite() {
@@ -1040,6 +1213,12 @@ impl PickController {
                 return;
             }
             Step::CalibrateMove(i) => match self.poses.get(usize::from(i)).copied() {
+                Some(target) if target.z_m < self.safe_floor_z() => {
+                    // Not yet confirmed by a sighting from above (the marks
+                    // were not seen at the pose before): skip it.
+                    self.enter(Step::CalibrateMove(i.saturating_add(1)));
+                    return;
+                }
                 Some(mut target) => {
                     target.azimuth_rad = self.azimuth_near_start(target.azimuth_rad);
                     self.arc_to(target)
@@ -1050,6 +1229,16 @@ impl PickController {
                 }
             },
             Step::CalibrateDwell(_) | Step::Locate | Step::Release => {
+                if step == Step::Locate {
+                    // A fresh look for a steady conveyor and a new plan.
+                    self.next_plan_attempt_s = self.now_s;
+                    if self.locate_pose.is_none() {
+                        self.locate_pose = Some(ArcPoint::from_position(
+                            &self.reference.position,
+                            self.reference.yaw,
+                        ));
+                    }
+                }
                 self.hold_here();
                 if step == Step::Release {
                     self.gripper = GripperCommand::Open;
@@ -1057,6 +1246,16 @@ impl PickController {
                 return;
             }
             Step::Intercept => return,
+            Step::Relocate => match self.locate_pose {
+                Some(mut target) => {
+                    target.azimuth_rad = self.azimuth_near_start(target.azimuth_rad);
+                    self.arc_to(target)
+                }
+                None => {
+                    self.enter(Step::Locate);
+                    return;
+                }
+            },
             Step::Track | Step::Descend | Step::GraspSettle => {
                 let (from, to, duration) = match step {
                     Step::Descend => (settings.hover_height_m, 0.0, settings.descend_s),
@@ -1112,35 +1311,49 @@ impl PickController {
                 target.azimuth_rad = self.azimuth_near_start(target.azimuth_rad);
                 self.arc_to(target)
             }
-            Step::Stopping => {
-                let start = self.stop_start();
-                let near_part = matches!(
-                    self.motion,
-                    Motion::Follow { .. } | Motion::Intercept { .. }
-                );
-                let rise = if near_part { settings.stop_rise_m } else { 0.0 };
-                let mut end = TaskState::at_rest(
-                    start.position
-                        + start.velocity * (0.5 * settings.stop_s)
-                        + Vector3::new(0.0, 0.0, rise),
-                    start.yaw + start.yaw_rate * (0.5 * settings.stop_s),
-                );
-                if !within_reach(&self.model, &end.position) {
-                    end.position = start.position;
-                }
-                InterceptPlan::between(&start, &end, settings.stop_s, core::f32::consts::PI).map(
-                    |path| Motion::Quintic {
-                        path,
-                        start_s: self.now_s,
-                    },
-                )
-            }
+            Step::Stopping | Step::InterceptAbandoned => self.decelerate(),
         };
         match motion {
             Ok(motion) => self.motion = motion,
-            Err(_) if step == Step::Stopping => self.hold_here(),
+            // No task-space stop could be planned: the joint brake stops the
+            // arm instead. (Holding the reference here would leave the pick
+            // in `Stopping` for good: a hold never finishes.)
+            Err(_) if matches!(step, Step::Stopping | Step::InterceptAbandoned) => {
+                self.engage_brake()
+            }
             Err(_) => self.raise(FaultCause::PartUnreachable),
         }
+    }
+
+    /// To rest over `stop_s` from the present reference (its speeds capped:
+    /// [`Self::stop_start`]), rising clear of the part when near it, and
+    /// never ending lower than it starts before the calibration is accepted.
+    fn decelerate(&self) -> Result<Motion, PlanError> {
+        let settings = self.settings;
+        let start = self.stop_start();
+        let near_part = matches!(
+            self.motion,
+            Motion::Follow { .. } | Motion::Intercept { .. }
+        );
+        let rise = if near_part { settings.stop_rise_m } else { 0.0 };
+        let mut end = TaskState::at_rest(
+            start.position
+                + start.velocity * (0.5 * settings.stop_s)
+                + Vector3::new(0.0, 0.0, rise),
+            start.yaw + start.yaw_rate * (0.5 * settings.stop_s),
+        );
+        if !self.calibration_accepted && end.position.z < start.position.z {
+            end.position.z = start.position.z;
+        }
+        if !within_reach(&self.model, &end.position) {
+            end.position = start.position;
+        }
+        InterceptPlan::between(&start, &end, settings.stop_s, core::f32::consts::PI).map(|path| {
+            Motion::Quintic {
+                path,
+                start_s: self.now_s,
+            }
+        })
     }
 
     /// Transitions of the state machine at this tick.
@@ -1167,6 +1380,8 @@ impl PickController {
             }
             Step::Locate => self.locate(in_step),
             Step::Intercept if finished => self.enter(Step::Track),
+            Step::InterceptAbandoned if finished => self.enter(Step::Relocate),
+            Step::Relocate if finished => self.enter(Step::Locate),
             Step::Track => {
                 let error = (self.tool_measured
                     - (self.reference.position - Vector3::new(0.0, 0.0, TOOL_LENGTH_M as f32)))
@@ -1197,6 +1412,12 @@ impl PickController {
             Step::ReturnRaise if finished => self.enter(Step::ReturnTransfer),
             Step::ReturnTransfer if finished => self.enter(Step::Done),
             Step::Stopping if finished => self.enter(Step::Faulted),
+            // Every stop ends within its stated time: a stop still running
+            // past it (it cannot, with the quintic it plans; this is the
+            // guarantee, not the plan) is taken over by the joint brake.
+            Step::Stopping if in_step > settings.stop_s + settings.motion_timeout_margin_s => {
+                self.engage_brake()
+            }
             _ => {}
         }
     }
@@ -1222,6 +1443,7 @@ impl PickController {
                     self.poses.reverse();
                     self.enter(Step::CalibrateMove(0));
                 } else {
+                    self.calibration_accepted = true;
                     self.view.arm(
                         &estimate,
                         &self.cell.log_header().camera,
@@ -1243,6 +1465,7 @@ impl PickController {
     fn locate(&mut self, in_step: f32) {
         match self.take_outcome() {
             Some(JobOutcome::Plan(Ok((plan, prediction)))) => {
+                self.intercept_attempts = self.intercept_attempts.saturating_add(1);
                 self.motion = Motion::Intercept {
                     plan,
                     start_s: self.now_s,

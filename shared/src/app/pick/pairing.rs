@@ -5,7 +5,7 @@
 //! vision latency), and the effector marks are placed by the joint angles at
 //! exposure (Section 3.2).
 
-use super::handoff::{DiscView, TriggerRecord, VisionNews};
+use super::handoff::{DiscView, Sighting, TriggerRecord, VisionNews};
 use crate::app::vision::{observation_from_frame, VisionError};
 use crate::fusion::{TriggerLatch, Triggered};
 use crate::observation::ObservationFrame;
@@ -117,7 +117,7 @@ impl FramePairer {
         if !record.feeds_calibrator {
             return Ok(Paired {
                 news: VisionNews::Paired {
-                    sighting_xy: None,
+                    sighting: None,
                     view,
                 },
                 observation: None,
@@ -141,13 +141,16 @@ impl FramePairer {
                 })
             }
         };
-        let sighting_xy = observation.effector.and_then(|e| {
-            let [x, y, _] = e.base_m[0];
+        let sighting = observation.effector.and_then(|e| {
+            let [x, y, z] = e.base_m[0];
             let norm = libm::hypot(x, y);
-            (norm > 1e-6).then(|| [(x / norm) as f32, (y / norm) as f32])
+            (norm > 1e-6).then(|| Sighting {
+                direction_xy: [(x / norm) as f32, (y / norm) as f32],
+                mark_z_m: z as f32,
+            })
         });
         Ok(Paired {
-            news: VisionNews::Paired { sighting_xy, view },
+            news: VisionNews::Paired { sighting, view },
             observation: Some(observation),
         })
     }

@@ -16,7 +16,8 @@ pub struct PickSettings {
     /// Sightings of the marks needed before the first estimate.
     pub min_effector_sightings: u32,
     /// Grasp-point heights above the part's top at which the marks are shown for
-    /// the robot-to-disc calibration, and how long each pose is held.
+    /// the robot-to-disc calibration, highest first (the arm descends in steps
+    /// the camera confirms: `max_descent_step_m`), and how long each pose is held.
     pub calibration_heights_m: [f32; 3],
     pub calibration_dwell_s: f32,
     /// Hover height above the grasp point while intercepting and tracking.
@@ -103,6 +104,30 @@ pub struct PickSettings {
     pub reference_step_rad: f32,
     /// Extra time a motion phase may take beyond its planned duration.
     pub motion_timeout_margin_s: f32,
+    /// The largest fraction of a joint's speed limit a reference may ask for
+    /// (`J^+` of its twist at the measured configuration, every period): the
+    /// plans keep to 0.7, the intercept's live correction adds a little.
+    /// Beyond it the pick stops (JointOverspeed) with the stop's start speed
+    /// scaled back within the limits.
+    pub reference_speed_factor: f32,
+    /// The intercept's live correction absorbs the part's departure from the
+    /// plan's prediction (the disc's speed ripple) up to this distance of the
+    /// grasp point, and a conveyor speed within the larger of these of the
+    /// plan's; beyond them the conveyor changed under the plan (it stopped,
+    /// sped up, reversed) and the plan's checks of reach and joint speed no
+    /// longer hold: the intercept is abandoned, the arm brought to rest and
+    /// back to where the part was located from, and a new one planned once
+    /// the conveyor is steady.
+    pub max_intercept_correction_m: f32,
+    pub max_conveyor_speed_change_rad_s: f32,
+    pub max_conveyor_speed_change_fraction: f32,
+    /// Intercepts planned for one part before the pick gives up (PartUnreachable).
+    pub max_intercept_attempts: u8,
+    /// Before the calibration is accepted the flange goes at most this far
+    /// below the lowest height at which the camera has seen the gripper's
+    /// marks (BelowSafeHeight otherwise): it descends to the calibration
+    /// poses in steps the camera confirms, not on the estimate's word alone.
+    pub max_descent_step_m: f32,
 }
 
 impl Default for PickSettings {
@@ -112,7 +137,7 @@ impl Default for PickSettings {
             search_tool_height_m: 0.70,
             search_half_sweep_rad: 2.6,
             min_effector_sightings: 6,
-            calibration_heights_m: [0.08, 0.20, 0.35],
+            calibration_heights_m: [0.35, 0.20, 0.08],
             calibration_dwell_s: 0.6,
             hover_height_m: 0.06,
             track_settle_s: 0.3,
@@ -155,6 +180,12 @@ impl Default for PickSettings {
             reference_step_m: 0.005,
             reference_step_rad: 0.02,
             motion_timeout_margin_s: 2.0,
+            reference_speed_factor: 0.95,
+            max_intercept_correction_m: 0.08,
+            max_conveyor_speed_change_rad_s: 0.1,
+            max_conveyor_speed_change_fraction: 0.2,
+            max_intercept_attempts: 3,
+            max_descent_step_m: 0.20,
         }
     }
 }

@@ -138,13 +138,14 @@ impl PickWorker {
             return Err(FaultCause::CalibrationFailed);
         }
         // Robust weights hide a few stray detections, not a second camera
-        // pose: views that fit none report it through their residual.
-        if !preliminary
-            && !at_most(
-                report.rms_reprojection_px,
-                self.settings.max_rms_reprojection_px,
-            )
-        {
+        // pose: views that fit none report it through their residual. The
+        // preliminary estimate is held to this as much as the final one: the
+        // calibration poses are planned from it, so one that mixes two camera
+        // poses would send the arm to heights computed from no real cell.
+        if !at_most(
+            report.rms_reprojection_px,
+            self.settings.max_rms_reprojection_px,
+        ) {
             return Err(FaultCause::CameraMoved);
         }
         // Nor a second cell: when the camera moved or the encoder slipped while
@@ -157,7 +158,7 @@ impl PickWorker {
             .saturating_mul(points_per_frame)
             .max(1);
         let rejected = result.quality.outliers_rejected as f32 / points as f32;
-        if !preliminary && !at_most(rejected, self.settings.max_rejected_fraction) {
+        if !at_most(rejected, self.settings.max_rejected_fraction) {
             return Err(FaultCause::CalibrationFailed);
         }
         let poses = if preliminary {
