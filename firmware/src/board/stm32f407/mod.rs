@@ -114,12 +114,11 @@ core::arch::global_asm!(
 );
 
 /// A fault's cause, kept across the reset that follows it: `.uninit` is
-/// neither zeroed nor loaded by cortex-m-rt. [`FAULT_MARK`] in the upper
-/// 24 bits tells a stored cause from RAM's power-on contents.
+/// neither zeroed nor loaded by cortex-m-rt. A mark in the upper 24 bits
+/// tells a stored cause from RAM's power-on contents
+/// (`shared::safety::reset_word`).
 #[link_section = ".uninit.FAIL_SAFE"]
 static mut LAST_RUN_FAULT: core::mem::MaybeUninit<u32> = core::mem::MaybeUninit::uninit();
-
-const FAULT_MARK: u32 = 0xFA17_5A00;
 
 fn remember_fault(fault: BoardFault) {
     // SAFETY: a word-aligned static of our own, written with one volatile
@@ -127,7 +126,7 @@ fn remember_fault(fault: BoardFault) {
     unsafe {
         core::ptr::addr_of_mut!(LAST_RUN_FAULT)
             .cast::<u32>()
-            .write_volatile(FAULT_MARK | u32::from(fail_safe::to_code(fault)));
+            .write_volatile(shared::safety::reset_word(fault));
     }
 }
 
@@ -140,10 +139,7 @@ fn take_remembered_fault() -> Option<BoardFault> {
         slot.write_volatile(0);
         word
     };
-    if word & 0xFFFF_FF00 != FAULT_MARK {
-        return None;
-    }
-    fail_safe::from_code((word & 0xFF) as u8)
+    shared::safety::fault_from_reset_word(word)
 }
 
 /// A fault handler's first duties: the drives off, the cause latched for the
