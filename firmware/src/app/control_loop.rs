@@ -126,7 +126,7 @@ fn configure(
 /// latched state alone on a repeated one (its torques were checked when
 /// first computed). A board fault latched by a handler trips it first.
 fn interlock_period(
-    interlock: &mut DriveInterlock,
+    interlock: &mut DriveInterlock<'_>,
     motion: &mut EncoderMotion,
     sample: &SensorSample,
     torque_nm: &[f32; 6],
@@ -184,7 +184,7 @@ pub async fn control_loop(
     source: ControlSource,
 ) {
     plant.disable();
-    let mut interlock = DriveInterlock::new(crate::board::interlock_settings());
+    let mut interlock = DriveInterlock::new(&crate::board::INTERLOCK_SETTINGS);
     // Replaced with the cell's counts per radian by every configuration.
     let mut motion = EncoderMotion::new(&[0.0; 6]);
     let mut reported_fault: Option<InterlockFault> = None;

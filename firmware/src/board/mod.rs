@@ -210,14 +210,13 @@ pub trait Watchdog {
 /// `commissioning` feature every torque capped at
 /// [`COMMISSIONING_TORQUE_FRACTION`] of its rating, so that a first run with
 /// unverified encoder and motor signs (each board's `JOINT_SIGNS`) moves the
-/// arm gently while the interlock's motion check finds a wrong sign.
-pub fn interlock_settings() -> InterlockSettings {
-    if cfg!(feature = "commissioning") {
-        InterlockSettings::PUMA560.with_commissioning_cap(COMMISSIONING_TORQUE_FRACTION)
-    } else {
-        InterlockSettings::PUMA560
-    }
-}
+/// arm gently while the interlock's motion check finds a wrong sign. A
+/// static: in flash, not in the control task's RAM.
+pub static INTERLOCK_SETTINGS: InterlockSettings = if cfg!(feature = "commissioning") {
+    InterlockSettings::PUMA560.with_commissioning_cap(COMMISSIONING_TORQUE_FRACTION)
+} else {
+    InterlockSettings::PUMA560
+};
 
 /// The commissioning torque cap, as a fraction of each joint's rating: 20 %
 /// lifts no arm joint against its own weight at full stretch (joint 2 holds up

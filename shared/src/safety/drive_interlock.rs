@@ -30,7 +30,6 @@
 //!
 //! Units: radians, rad/s, N m, joint side; joint 1 first.
 
-use crate::app::joint_speed::JointSpeedWindow;
 use crate::robot::table::{POSITION_MAX, POSITION_MIN, TORQUE_MAX, VELOCITY_MAX};
 use crate::robot::{JointLimits, JointVector};
 
@@ -183,15 +182,22 @@ impl InterlockSettings {
 
     /// The same with every torque capped at `fraction` of the joint's rating
     /// (commissioning). A fraction that is not in (0, 1] caps at zero torque.
-    pub fn with_commissioning_cap(mut self, fraction: f32) -> Self {
+    /// A `const fn`, so a board keeps its settings in flash.
+    pub const fn with_commissioning_cap(mut self, fraction: f32) -> Self {
         let fraction = if fraction > 0.0 && fraction <= 1.0 {
             fraction
         } else {
             0.0
         };
         let mut cap = self.limits.torque_max_nm;
-        for value in cap.iter_mut() {
-            *value *= fraction;
+        let mut joint = 0;
+        while joint < JOINTS {
+            // Indexing in a const fn: a bad index is a compile error, not a panic.
+            #[allow(clippy::indexing_slicing)]
+            {
+                cap[joint] *= fraction;
+            }
+            joint += 1;
         }
         self.torque_cap_nm = Some(cap);
         self
@@ -229,10 +235,11 @@ impl InterlockOutput {
     };
 }
 
-/// The latched cut-out.
+/// The latched cut-out. It borrows its settings: the firmware keeps them in
+/// flash (a `static`), not in the control task's RAM.
 #[derive(Debug, Clone, PartialEq)]
-pub struct DriveInterlock {
-    settings: InterlockSettings,
+pub struct DriveInterlock<'s> {
+    settings: &'s InterlockSettings,
     fault: Option<InterlockFault>,
     /// Consecutive periods each joint has moved against a large torque.
     opposed_periods: [u16; JOINTS],
@@ -255,8 +262,8 @@ fn joint_fault(joint: usize, check: InterlockCheck) -> InterlockFault {
     }
 }
 
-impl DriveInterlock {
-    pub fn new(settings: InterlockSettings) -> Self {
+impl<'s> DriveInterlock<'s> {
+    pub fn new(settings: &'s InterlockSettings) -> Self {
         DriveInterlock {
             settings,
             fault: None,
@@ -270,8 +277,8 @@ impl DriveInterlock {
         self.fault
     }
 
-    pub fn settings(&self) -> &InterlockSettings {
-        &self.settings
+    pub fn settings(&self) -> &'s InterlockSettings {
+        self.settings
     }
 
     /// Latches `fault` (a board handler's, or a check the caller made);
@@ -313,59 +320,47 @@ impl DriveInterlock {
         self.hold(input.torque_nm)
     }
 
+    /// All checks in one pass over the joints, without an early exit: each
+    /// failed check sets a bit (`check * 8 + joint`), and only a failure is
+    /// decoded (the lowest bit: torques first, then positions, then speeds,
+    /// then motion, joint 1 first in each). The control period runs this
+    /// every time at opt-level "z" on the M4F: a comparison that also rejects
+    /// NaN (`!(x <= limit)`) costs one compare where `is_finite` plus a
+    /// branch per value cost tens of instructions an entry.
     fn check(&mut self, input: &PeriodInput<'_>) -> Result<(), InterlockFault> {
+        const TORQUE: u32 = 0;
+        const POSITION: u32 = 8;
+        const SPEED: u32 = 16;
+        const MOTION: u32 = 24;
         let s = self.settings;
         let limits = &s.limits;
-        for (joint, (&tau, &max)) in input
-            .torque_nm
-            .iter()
-            .zip(limits.torque_max_nm.iter())
-            .enumerate()
-        {
-            if !tau.is_finite() {
-                return Err(joint_fault(joint, InterlockCheck::TorqueNotFinite));
-            }
-            // A NaN rating rejects every torque.
-            if !at_most(tau.abs(), max * (1.0 + s.torque_tolerance)) {
-                return Err(joint_fault(joint, InterlockCheck::TorqueOutOfRange));
-            }
-        }
-        for (joint, ((&q, &min), &max)) in input
-            .q_measured_rad
-            .iter()
-            .zip(limits.position_min_rad.iter())
-            .zip(limits.position_max_rad.iter())
-            .enumerate()
-        {
-            if !q.is_finite() {
-                return Err(joint_fault(joint, InterlockCheck::MeasurementNotFinite));
-            }
-            let margin = s.soft_limit_margin_rad;
-            if !(q >= min - margin && q <= max + margin) {
-                return Err(joint_fault(joint, InterlockCheck::SoftLimit));
-            }
-        }
-        let Some(qd) = input.qd_measured_rad_s else {
-            return Ok(());
-        };
-        let factor = if input.braking {
+        let margin = s.soft_limit_margin_rad;
+        let speed_factor = if input.braking {
             s.overspeed_braking_factor
         } else {
             s.overspeed_factor
         };
-        let caps = s.torque_cap_nm.unwrap_or(limits.torque_max_nm);
-        for (joint, (&speed, &speed_max)) in
-            qd.iter().zip(limits.speed_max_rad_s.iter()).enumerate()
-        {
-            if !speed.is_finite() {
-                return Err(joint_fault(joint, InterlockCheck::MeasurementNotFinite));
-            }
-            if !at_most(speed.abs(), factor * speed_max) {
-                return Err(joint_fault(joint, InterlockCheck::Overspeed));
-            }
-            let tau = input.torque_nm.get(joint).copied().unwrap_or(0.0);
-            let rating = limits.torque_max_nm.get(joint).copied().unwrap_or(0.0);
-            let in_force = caps.get(joint).copied().unwrap_or(0.0).min(rating);
+        let mut failed: u32 = 0;
+        for joint in 0..JOINTS {
+            let at = |values: &[f32; JOINTS]| values.get(joint).copied().unwrap_or(f32::NAN);
+            let bit = |check: u32, fails: bool| u32::from(fails) << (check + joint as u32);
+            let tau = at(input.torque_nm);
+            let rating = at(&limits.torque_max_nm);
+            failed |= bit(
+                TORQUE,
+                !at_most(tau.abs(), rating * (1.0 + s.torque_tolerance)),
+            );
+            let q = at(input.q_measured_rad);
+            let inside = q >= at(&limits.position_min_rad) - margin
+                && q <= at(&limits.position_max_rad) + margin;
+            failed |= bit(POSITION, !inside);
+            let Some(qd) = input.qd_measured_rad_s else {
+                continue;
+            };
+            let speed = at(qd);
+            let speed_max = at(&limits.speed_max_rad_s);
+            failed |= bit(SPEED, !at_most(speed.abs(), speed_factor * speed_max));
+            let in_force = s.torque_cap_nm.map_or(rating, |cap| at(&cap).min(rating));
             let opposed = tau * speed < 0.0
                 && tau.abs() >= s.disagreement_torque_fraction * in_force
                 && speed.abs() >= s.disagreement_speed_fraction * speed_max;
@@ -373,20 +368,40 @@ impl DriveInterlock {
                 self.opposed_periods.get_mut(joint),
                 self.opposed_from_rad_s.get_mut(joint),
             ) {
-                if !opposed {
+                if opposed {
+                    if *periods == 0 {
+                        *from = speed.abs();
+                    }
+                    *periods = periods.saturating_add(1);
+                    failed |= bit(
+                        MOTION,
+                        *periods >= s.disagreement_periods && speed.abs() > *from,
+                    );
+                } else {
                     *periods = 0;
-                    continue;
-                }
-                if *periods == 0 {
-                    *from = speed.abs();
-                }
-                *periods = periods.saturating_add(1);
-                if *periods >= s.disagreement_periods && speed.abs() > *from {
-                    return Err(joint_fault(joint, InterlockCheck::MotionDisagreement));
                 }
             }
         }
-        Ok(())
+        if failed == 0 {
+            return Ok(());
+        }
+        let first = failed.trailing_zeros();
+        let joint = (first % 8) as usize;
+        let finite = |values: Option<&[f32; JOINTS]>| {
+            values
+                .and_then(|v| v.get(joint))
+                .is_some_and(|x| x.is_finite())
+        };
+        let check = match first - first % 8 {
+            TORQUE if !finite(Some(input.torque_nm)) => InterlockCheck::TorqueNotFinite,
+            TORQUE => InterlockCheck::TorqueOutOfRange,
+            POSITION if !finite(Some(input.q_measured_rad)) => InterlockCheck::MeasurementNotFinite,
+            POSITION => InterlockCheck::SoftLimit,
+            SPEED if !finite(input.qd_measured_rad_s) => InterlockCheck::MeasurementNotFinite,
+            SPEED => InterlockCheck::Overspeed,
+            _ => InterlockCheck::MotionDisagreement,
+        };
+        Err(joint_fault(joint, check))
     }
 
     /// The torques clipped to the commissioning cap (unchanged in service).
@@ -406,48 +421,89 @@ impl DriveInterlock {
 /// Joint positions and speeds from the encoders alone, for the interlock:
 /// counts scaled by the cell's counts per radian (0 counts at q = 0, a count
 /// standing for the middle of its interval, as the pick reads them) and
-/// differenced over [`crate::app::joint_speed::WINDOW`] readings.
+/// differenced over [`WINDOW`] readings (ten periods: one count of
+/// quantisation is then a tenth of a count a period in speed, as in the
+/// pick's own speed supervisor). Integer counts in a ring, no nalgebra: this
+/// runs every control period.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EncoderMotion {
-    counts_per_rad: [f32; JOINTS],
-    window: JointSpeedWindow,
+    rad_per_count: [f32; JOINTS],
+    counts: [[i32; JOINTS]; WINDOW],
+    time_us: [u64; WINDOW],
+    /// The slot the next reading goes to.
+    next: usize,
+    /// Readings held (at most [`WINDOW`]).
+    filled: usize,
 }
 
+/// Readings the speeds span (`WINDOW - 1` periods apart).
+pub const WINDOW: usize = crate::app::joint_speed::WINDOW;
+
 impl EncoderMotion {
+    /// A scale that is not a positive finite number gives NaN positions
+    /// and speeds, which the interlock trips on.
     pub fn new(counts_per_rad: &[f32; JOINTS]) -> Self {
+        let mut rad_per_count = [f32::NAN; JOINTS];
+        for (out, &per_rad) in rad_per_count.iter_mut().zip(counts_per_rad.iter()) {
+            if per_rad > 0.0 && per_rad.is_finite() {
+                *out = 1.0 / per_rad;
+            }
+        }
         EncoderMotion {
-            counts_per_rad: *counts_per_rad,
-            window: JointSpeedWindow::new(),
+            rad_per_count,
+            counts: [[0; JOINTS]; WINDOW],
+            time_us: [0; WINDOW],
+            next: 0,
+            filled: 0,
         }
     }
 
-    /// Positions (rad) and, once the window is full, speeds (rad/s). A scale
-    /// that is not positive gives a NaN position, which the interlock trips on.
+    /// Positions (rad) and, once the window is full, speeds (rad/s).
     pub fn update(
         &mut self,
         joint_counts: &[i32; JOINTS],
         time_us: u64,
     ) -> ([f32; JOINTS], Option<[f32; JOINTS]>) {
         let mut q = [0.0f32; JOINTS];
-        for ((q, &count), &per_rad) in q
+        for ((q, &count), &scale) in q
             .iter_mut()
             .zip(joint_counts.iter())
-            .zip(self.counts_per_rad.iter())
+            .zip(self.rad_per_count.iter())
         {
-            *q = if per_rad > 0.0 && per_rad.is_finite() {
-                (count as f32 + 0.5) / per_rad
-            } else {
-                f32::NAN
-            };
+            *q = (count as f32 + 0.5) * scale;
         }
-        let qd = self.window.push(&JointVector::from(q), time_us).map(|v| {
-            let mut out = [0.0f32; JOINTS];
-            for (slot, value) in out.iter_mut().zip(v.iter()) {
-                *slot = *value;
-            }
-            out
-        });
-        (q, qd)
+        let slot = self.next % WINDOW;
+        let oldest = (slot + 1) % WINDOW;
+        if let (Some(counts), Some(time)) = (self.counts.get_mut(slot), self.time_us.get_mut(slot))
+        {
+            *counts = *joint_counts;
+            *time = time_us;
+        }
+        self.next = oldest;
+        self.filled = (self.filled + 1).min(WINDOW);
+        if self.filled < WINDOW {
+            return (q, None);
+        }
+        let (Some(old_counts), Some(&old_time)) =
+            (self.counts.get(oldest), self.time_us.get(oldest))
+        else {
+            return (q, None);
+        };
+        let dt_s = match time_us.checked_sub(old_time) {
+            Some(us) if us > 0 => crate::kernels::micros_to_seconds(us),
+            _ => return (q, None),
+        };
+        let per_second = 1.0 / dt_s;
+        let mut qd = [0.0f32; JOINTS];
+        for (((qd, &now), &then), &scale) in qd
+            .iter_mut()
+            .zip(joint_counts.iter())
+            .zip(old_counts.iter())
+            .zip(self.rad_per_count.iter())
+        {
+            *qd = now.wrapping_sub(then) as f32 * scale * per_second;
+        }
+        (q, Some(qd))
     }
 }
 
@@ -471,8 +527,8 @@ mod tests {
         }
     }
 
-    fn interlock() -> DriveInterlock {
-        DriveInterlock::new(InterlockSettings::PUMA560)
+    fn interlock() -> DriveInterlock<'static> {
+        DriveInterlock::new(&InterlockSettings::PUMA560)
     }
 
     #[test]
@@ -664,7 +720,7 @@ mod tests {
     #[test]
     fn the_commissioning_cap_clips_every_torque() {
         let settings = InterlockSettings::PUMA560.with_commissioning_cap(0.2);
-        let mut lock = DriveInterlock::new(settings);
+        let mut lock = DriveInterlock::new(&settings);
         let rated = InterlockLimits::PUMA560.torque_max_nm;
         let tau = rated.map(|t| -t);
         let out = lock.period(&input(&tau, &REST, Some(&REST)));
@@ -673,11 +729,11 @@ mod tests {
             assert!((out + 0.2 * rated).abs() < 1e-4, "{out} {rated}");
         }
         // A bad cap allows no torque, never more.
-        let mut lock =
-            DriveInterlock::new(InterlockSettings::PUMA560.with_commissioning_cap(f32::NAN));
+        let nan_cap = InterlockSettings::PUMA560.with_commissioning_cap(f32::NAN);
+        let mut lock = DriveInterlock::new(&nan_cap);
         assert_eq!(lock.period(&input(&tau, &REST, None)).torque_nm, REST);
         // Still checked against the rating before clipping.
-        let mut lock = DriveInterlock::new(settings);
+        let mut lock = DriveInterlock::new(&settings);
         let mut over = REST;
         over[0] = 2.0 * rated[0];
         assert!(!lock.period(&input(&over, &REST, None)).enable);
@@ -688,7 +744,7 @@ mod tests {
         let per_rad = [1000.0; JOINTS];
         let mut motion = EncoderMotion::new(&per_rad);
         let mut last = None;
-        for k in 0..crate::app::joint_speed::WINDOW as i32 {
+        for k in 0..WINDOW as i32 {
             // Joint 3 at 2 rad/s: 2 counts per 1 ms period.
             let counts = [0, 0, 2 * k, 0, 0, 0];
             let (q, qd) = motion.update(&counts, 1_000 * k as u64);

@@ -108,7 +108,7 @@ mod tests {
         const INERTIA_KG_M2: f32 = 4.0;
         const COUNTS_PER_RAD: f32 = 10_000.0;
         let settings = InterlockSettings::PUMA560.with_commissioning_cap(0.2);
-        let mut lock = DriveInterlock::new(settings);
+        let mut lock = DriveInterlock::new(&settings);
         let mut encoders = EncoderMotion::new(&[COUNTS_PER_RAD; JOINTS]);
         let (mut q_true, mut qd_true) = (0.0f32, 0.0f32);
         let dt_s = 1e-3;
