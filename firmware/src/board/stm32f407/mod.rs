@@ -120,13 +120,17 @@ core::arch::global_asm!(
 #[link_section = ".uninit.FAIL_SAFE"]
 static mut LAST_RUN_FAULT: core::mem::MaybeUninit<u32> = core::mem::MaybeUninit::uninit();
 
+/// Keeps `fault` for the next boot unless this run already kept one (a
+/// panic's `udf` ends in HardFault: the panic is the cause to report).
 fn remember_fault(fault: BoardFault) {
-    // SAFETY: a word-aligned static of our own, written with one volatile
-    // store (handlers may race it; either value is a valid fault).
+    // SAFETY: a word-aligned static of our own (`init` cleared it at boot),
+    // read and written with volatile accesses; handlers may race it, and
+    // either value is a valid fault.
     unsafe {
-        core::ptr::addr_of_mut!(LAST_RUN_FAULT)
-            .cast::<u32>()
-            .write_volatile(shared::safety::reset_word(fault));
+        let slot = core::ptr::addr_of_mut!(LAST_RUN_FAULT).cast::<u32>();
+        if shared::safety::fault_from_reset_word(slot.read_volatile()).is_none() {
+            slot.write_volatile(shared::safety::reset_word(fault));
+        }
     }
 }
 
