@@ -146,10 +146,11 @@ fn take_remembered_fault() -> Option<BoardFault> {
     shared::safety::fault_from_reset_word(word)
 }
 
-/// A fault handler's first duties: the drives off, the cause latched for the
-/// control loop and kept for the next boot.
-fn fail_safe_now(fault: BoardFault) {
-    drives_off_now();
+/// A fault handler's duties once the drives are off (each handler calls
+/// [`drives_off_now`] itself, first, inlined: not behind a call that the
+/// optimiser may keep out of line): the cause latched for the control loop
+/// and kept for the next boot.
+fn latch_and_remember(fault: BoardFault) {
     fail_safe::latch(fault);
     remember_fault(fault);
 }
@@ -327,7 +328,8 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
 /// panic sites the panic-free code never reaches.
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
-    fail_safe_now(BoardFault::Panic);
+    drives_off_now();
+    latch_and_remember(BoardFault::Panic);
     match info.location() {
         Some(at) => defmt::error!("panic at {=str}:{=u32}", at.file(), at.line()),
         None => defmt::error!("panic"),
@@ -339,7 +341,8 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
 /// armed yet the board stays here, drives off).
 #[cortex_m_rt::exception]
 unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
-    fail_safe_now(BoardFault::HardFault);
+    drives_off_now();
+    latch_and_remember(BoardFault::HardFault);
     defmt::error!("hard fault at pc={=u32:#x}; drives off", frame.pc());
     loop {
         cortex_m::asm::wfi();
