@@ -73,6 +73,11 @@ fn run() -> Option<()> {
         pick_tick(&timer, &model, &q);
         return Some(());
     }
+    // `BENCH_M4_ONLY=interlock`: only the drive interlock's period.
+    if option_env!("BENCH_M4_ONLY") == Some("interlock") {
+        interlock_period(&timer);
+        return Some(());
+    }
 
     hprintln!(
         "bench-m4: instructions per call on mps2-an386 (Cortex-M4F), {} calls each",
@@ -321,6 +326,37 @@ fn pick_tick(timer: &timer::DualTimer, model: &Puma560<f32>, q: &Joints<f32>) {
     hprintln!(
         "  forward kinematics (f32)        {:>6}",
         timer.measure(CALLS, || model.forward_kinematics(black_box(q)))
+    );
+}
+
+/// What the drive interlock adds to every control period: the encoder
+/// motion (positions, windowed speeds) and the checks, on a healthy arm.
+fn interlock_period(timer: &timer::DualTimer) {
+    use shared::safety::{DriveInterlock, EncoderMotion, InterlockSettings, PeriodInput};
+    static SETTINGS: InterlockSettings = InterlockSettings::PUMA560;
+    let mut lock = DriveInterlock::new(&SETTINGS);
+    let mut motion = EncoderMotion::new(&[10_000.0; 6]);
+    let tau = [10.0_f32, -40.0, 5.0, 1.0, -1.0, 0.5];
+    let mut k = 0_i32;
+    let mut period = || {
+        k += 1;
+        let counts = [k, -k, 2 * k, 0, 3, k / 2];
+        let (q, qd) = motion.update(black_box(&counts), k as u64 * 1_000);
+        lock.period(&PeriodInput {
+            torque_nm: black_box(&tau),
+            q_measured_rad: &q,
+            qd_measured_rad_s: qd.as_ref(),
+            braking: false,
+        })
+    };
+    for _ in 0..20 {
+        let _ = period();
+    }
+    let cost = timer.measure(CALLS, || black_box(period()));
+    hprintln!(
+        "  drive interlock period          {:>6}   (fault: {:?})",
+        cost,
+        lock.fault()
     );
 }
 

@@ -13,6 +13,7 @@
 //! - [`robot`]: PUMA 560 kinematics and dynamics (Section 4, Eq 16).
 //! - [`control`]: task-space computed-torque control (Eq 23).
 //! - [`kernels`]: straight-line small-vector kernels of the control period (the firmware is built for size).
+//! - [`safety`]: the drive interlock and the drives' wiring signs (drives that fail safe).
 //! - [`app`]: the controller application that the firmware and the in-process simulator both run.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
@@ -35,6 +36,7 @@ pub mod observation;
 pub mod planning;
 pub mod protocol;
 pub mod robot;
+pub mod safety;
 
 #[cfg(test)]
 mod test_cell;

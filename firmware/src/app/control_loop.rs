@@ -10,6 +10,16 @@
 //! from the vision computer for [`LINK_TIMEOUT_US`] stops the arm), vision
 //! staleness and the tracking, torque and speed checks inside the pick; any
 //! fault ends in the pick's controlled stop, reported in telemetry.
+//!
+//! Behind them, where torques go out, the drive interlock
+//! ([`shared::safety::DriveInterlock`]): every period the pick's torques,
+//! the joint positions and speeds from the sample's encoder counts alone, and
+//! whether the pick is braking decide whether the drives may be on. A trip,
+//! or a board fault latched by a handler ([`crate::board::fail_safe`]), turns
+//! the drives off (ticker: `PlantIo::disable`; lock step: zero torques in the
+//! actuator command) and keeps them off, period after period, until the host
+//! acknowledges by sending a configuration that is accepted (which also
+//! restarts the pick).
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
@@ -20,6 +30,7 @@ use shared::app::pick::handoff::{ControlEvent, WorkItem};
 use shared::app::pick::settings::PickSettings;
 use shared::app::pick::{PickController, MAX_TICK_MESSAGES};
 use shared::protocol::{FaultCause, GripperCommand, Message, PickPhase, SensorSample};
+use shared::safety::{DriveInterlock, EncoderMotion, InterlockFault, InterlockOutput, PeriodInput};
 
 use super::channels::{
     Configured, COMMANDS, CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, REPORTS, SAMPLES, TRIGGERS,
@@ -27,7 +38,7 @@ use super::channels::{
 };
 use super::phase_log;
 use super::stats;
-use crate::board::{active, ControlSource, CycleCounter, PlantIo, Watchdog};
+use crate::board::{active, fail_safe, ControlSource, CycleCounter, PlantIo, Watchdog};
 
 // `CONTROL_RATE_HZ`: the ticker's rate on a real board, the period a
 // deadline is counted against, and the rate `HelloAck` reports. Set at build
@@ -86,13 +97,14 @@ fn hand_on_events(pick: &mut PickController, session: u32) {
 /// controller's dynamic model, which no configuration changes: it is built
 /// (`controller_model`'s 5 KB and `Puma560::new`'s 2.7 KB of stack) only when
 /// there is no controller, the first time before the worker has ever had
-/// work, so not on top of its bundle adjustment.
+/// work, so not on top of its bundle adjustment. Returns whether the
+/// configuration was accepted.
 #[inline(never)]
 fn configure(
     pick: &mut Option<(u32, PickController)>,
     reported_estimate: &mut u32,
     configured: &Configured,
-) {
+) -> bool {
     let settings = PickSettings::default();
     let current = pick.as_ref().map(|(_, controller)| controller);
     match PickController::replacing(current, &configured.config, settings, configured.session) {
@@ -100,12 +112,40 @@ fn configure(
             *pick = Some((configured.session, controller));
             *reported_estimate = 0;
             stats::reset_costs();
+            true
         }
         Err(e) => {
             defmt::error!("control loop: configuration refused: {}", e.field);
             *pick = None;
+            false
         }
     }
+}
+
+/// The interlock's decision for this period: the checks on a new sample, the
+/// latched state alone on a repeated one (its torques were checked when
+/// first computed). A board fault latched by a handler trips it first.
+fn interlock_period(
+    interlock: &mut DriveInterlock<'_>,
+    motion: &mut EncoderMotion,
+    sample: &SensorSample,
+    torque_nm: &[f32; 6],
+    phase: PickPhase,
+    repeated: bool,
+) -> InterlockOutput {
+    if let Some(fault) = fail_safe::latched() {
+        interlock.trip(InterlockFault::Board(fault));
+    }
+    if repeated {
+        return interlock.hold(torque_nm);
+    }
+    let (q, qd) = motion.update(&sample.joint_counts, sample.time_us);
+    interlock.period(&PeriodInput {
+        torque_nm,
+        q_measured_rad: &q,
+        qd_measured_rad_s: qd.as_ref(),
+        braking: matches!(phase, PickPhase::Stopping | PickPhase::Faulted),
+    })
 }
 
 /// The next sample: from the link in lock step, from the board's encoders on
@@ -144,6 +184,10 @@ pub async fn control_loop(
     source: ControlSource,
 ) {
     plant.disable();
+    let mut interlock = DriveInterlock::new(&crate::board::INTERLOCK_SETTINGS);
+    // Replaced with the cell's counts per radian by every configuration.
+    let mut motion = EncoderMotion::new(&[0.0; 6]);
+    let mut reported_fault: Option<InterlockFault> = None;
     let mut pick: Option<(u32, PickController)> = None;
     let mut reported_estimate = 0u32;
     let mut last_phase = PickPhase::Idle;
@@ -155,7 +199,17 @@ pub async fn control_loop(
         // Every period, configured or not; the first one arms it.
         watchdog.feed();
         if let Some(configured) = CONTROL_CONFIG.try_take() {
-            configure(&mut pick, &mut reported_estimate, &configured);
+            if configure(&mut pick, &mut reported_estimate, &configured) {
+                // The host's acknowledgement of any drive fault: it has
+                // started over with a new configuration and a new pick.
+                if let Some(fault) = interlock.fault() {
+                    defmt::warn!("drive interlock: {} acknowledged by the host", fault);
+                }
+                fail_safe::acknowledge();
+                interlock.acknowledge();
+                reported_fault = None;
+                motion = EncoderMotion::new(&configured.config.joint_counts_per_rad);
+            }
         }
         let (Some(sample), Some((session, controller))) = (sample, pick.as_mut()) else {
             plant.disable();
@@ -183,14 +237,34 @@ pub async fn control_loop(
         // A sample sent again (its command was lost) gets the same command and
         // runs no period: not a control period in the figures either.
         let repeated = controller.repeats(&sample);
-        let command = controller.on_sensor_sample(&sample, &mut extra);
+        let mut command = controller.on_sensor_sample(&sample, &mut extra);
         hand_on_events(controller, *session);
+        let drives = interlock_period(
+            &mut interlock,
+            &mut motion,
+            &sample,
+            &command.joint_torque_nm,
+            controller.phase(),
+            repeated,
+        );
+        if interlock.fault() != reported_fault {
+            reported_fault = interlock.fault();
+            if let Some(fault) = reported_fault {
+                defmt::error!(
+                    "drive interlock: {}; drives off until the host acknowledges",
+                    fault
+                );
+                controller.stop(FaultCause::ControlFailure);
+            }
+        }
+        command.joint_torque_nm = drives.torque_nm;
         match source {
             ControlSource::LockStep => {
                 if COMMANDS.try_send(command).is_err() {
                     stats::count_dropped_message();
                 }
             }
+            ControlSource::Ticker if !drives.enable => plant.disable(),
             ControlSource::Ticker => {
                 let closed = command.gripper == GripperCommand::Close;
                 if let Err(e) =

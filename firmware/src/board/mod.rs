@@ -21,6 +21,10 @@
 
 use core::fmt;
 
+use shared::safety::InterlockSettings;
+
+pub mod fail_safe;
+
 #[cfg(all(feature = "board-qemu", feature = "board-stm32f407"))]
 compile_error!(
     "select exactly one board: `--no-default-features --features board-qemu` or the default `board-stm32f407`"
@@ -201,6 +205,24 @@ pub trait Watchdog {
     /// call.
     fn feed(&mut self);
 }
+
+/// The drive interlock's settings: the PUMA 560's limits, and with the
+/// `commissioning` feature every torque capped at
+/// [`COMMISSIONING_TORQUE_FRACTION`] of its rating, so that a first run with
+/// unverified encoder and motor signs (each board's `JOINT_SIGNS`) moves the
+/// arm gently while the interlock's motion check finds a wrong sign. A
+/// static: in flash, not in the control task's RAM.
+pub static INTERLOCK_SETTINGS: InterlockSettings = if cfg!(feature = "commissioning") {
+    InterlockSettings::PUMA560.with_commissioning_cap(COMMISSIONING_TORQUE_FRACTION)
+} else {
+    InterlockSettings::PUMA560
+};
+
+/// The commissioning torque cap, as a fraction of each joint's rating: 20 %
+/// lifts no arm joint against its own weight at full stretch (joint 2 holds up
+/// to 46 N m of 186.4), so the arm must be supported or near its rest pose
+/// when a sign is first tried.
+pub const COMMISSIONING_TORQUE_FRACTION: f32 = 0.2;
 
 /// Checks a torque set before any output is touched.
 pub fn validate_torques(torque_nm: &[f32; JOINTS]) -> Result<(), BoardError> {

@@ -5,6 +5,13 @@
 //! through the protocol (sensor samples in, actuator commands out). TIMER0
 //! counts instructions under `-icount`; NVIC lines 28 and 29 run the interrupt
 //! executors. The board's watchdog is a no-op ([`NoWatchdog`]).
+//!
+//! Drives that fail safe, here: there is no amplifier enable line, the
+//! simulator's drives are driven by the actuator commands. So an unexpected
+//! interrupt latches a board fault ([`crate::board::fail_safe`]) and the
+//! control loop's interlock sends zero torques from the next period until
+//! the host acknowledges; a panic or a HardFault ends QEMU (the simulator
+//! then gets no command, and its drives' watchdog brakes the arm).
 
 mod mmio;
 mod sim_io;
@@ -16,7 +23,7 @@ use defmt_semihosting as _;
 pub use sim_io::{InstructionCounter, LockStepPlant};
 pub use uart::Uart0;
 
-use super::{Board, ControlSource, Watchdog as WatchdogFeed};
+use super::{fail_safe, Board, ControlSource, Watchdog as WatchdogFeed};
 use crate::executor::{on_interrupt, Level};
 
 pub type Serial = Uart0;
@@ -90,7 +97,10 @@ unsafe fn DefaultHandler(irqn: i16) {
         28 => on_interrupt(Level::Control),
         29 => on_interrupt(Level::Link),
         _ => {
-            defmt::error!("unexpected interrupt {}", irqn);
+            // Drives off first: from the next period on the interlock sends
+            // zero torques, until the host acknowledges.
+            fail_safe::latch(shared::safety::BoardFault::UnexpectedInterrupt);
+            defmt::error!("unexpected interrupt {}; drives off", irqn);
         }
     }
 }

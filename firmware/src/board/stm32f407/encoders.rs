@@ -17,6 +17,7 @@ use embassy_stm32::timer::qei::{Config as QeiConfig, Qei};
 
 use shared::fusion::{CounterWidth, EncoderUnwrapper};
 
+use super::JOINT_SIGNS;
 use crate::board::{BoardError, JointCounts};
 
 /// The six quadrature decoders, joint 1 first.
@@ -80,7 +81,8 @@ pub fn qei_config() -> QeiConfig {
 }
 
 impl QuadratureEncoders {
-    /// The joint counts since boot, unwrapped from the 16-bit timers.
+    /// The joint counts since boot, unwrapped from the 16-bit timers, in each
+    /// joint's direction (its encoder sign, `super::JOINT_SIGNS`).
     pub fn read_counts(&mut self) -> Result<JointCounts, BoardError> {
         let raw = self.raw();
         let mut out = [0i32; 6];
@@ -93,6 +95,9 @@ impl QuadratureEncoders {
             let total = count
                 .update(u32::from(raw))
                 .map_err(|_| BoardError::EncoderOutOfRange { joint })?;
+            let total = JOINT_SIGNS
+                .encoder_count(joint, total)
+                .ok_or(BoardError::EncoderOutOfRange { joint })?;
             *out = i32::try_from(total).map_err(|_| BoardError::EncoderOutOfRange { joint })?;
         }
         Ok(out)

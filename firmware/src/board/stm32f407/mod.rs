@@ -21,6 +21,20 @@
 //!   period, 32 ms nominal ([`watchdog`]); `init` logs a reset it caused.
 //!
 //! The plant runs from the board's own ticker ([`ControlSource::Ticker`]).
+//!
+//! Drives that fail safe:
+//! - the amplifier enable PE15 is driven low by `__pre_init`, the first code
+//!   after reset (before RAM is initialised and the stack painted), and stays
+//!   low through `embassy_stm32::init` (which only turns the GPIO clocks on)
+//!   until the servos take the pin, low;
+//! - the panic handler, HardFault and the default handler (an unexpected
+//!   interrupt, NMI) drop the enable with one store ([`drives_off_now`])
+//!   before anything else, then latch the cause ([`crate::board::fail_safe`]);
+//!   a panic or HardFault also leaves its cause in RAM that survives the reset
+//!   the watchdog then makes, and `init` latches it again (as it does an IWDG
+//!   reset), so the drives stay off after the reboot until the host
+//!   acknowledges;
+//! - the joints' wiring signs are board configuration ([`JOINT_SIGNS`]).
 
 mod clock;
 mod conveyor;
@@ -47,7 +61,99 @@ pub use plant::Stm32Plant;
 use servo::{ServoAmplifiers, ServoPeripherals};
 pub use watchdog::IndependentWatchdogFeed;
 
-use super::{Board, ControlSource};
+use shared::safety::{BoardFault, JointSigns};
+
+use super::{fail_safe, Board, ControlSource};
+
+/// Each joint's encoder and motor sign on this cell's wiring (joint 1 first).
+/// A swapped quadrature channel or motor lead is entered here at
+/// commissioning (build with the `commissioning` feature: torques capped, and
+/// a wrong sign shows as the interlock's `MotionDisagreement` on its joint),
+/// not rewired by trial and error or found by a runaway.
+pub const JOINT_SIGNS: JointSigns = JointSigns::AS_WIRED;
+
+/// Drops the amplifier enable (PE15) with one store to GPIOE's BSRR: no HAL
+/// state, no lock, so any handler can call it first, whatever the firmware
+/// was doing. Harmless before the pin is an output (its output latch is then
+/// low already, see `__pre_init`).
+#[inline(always)]
+pub fn drives_off_now() {
+    embassy_stm32::pac::GPIOE
+        .bsrr()
+        .write(|w| w.set_br(15, true));
+}
+
+// The first code after reset (cortex-m-rt calls `__pre_init` before it
+// initialises RAM, so it is assembly: no Rust code may run yet). PE15, the
+// amplifier enable, becomes an output driving low: GPIOE's clock on
+// (RCC_AHB1ENR.GPIOEEN), a read back (the clock needs two cycles before the
+// port answers), BSRR.BR15 (output latch low), then MODER15 = 01 (output).
+// Until this runs (a few hundred nanoseconds after reset) the pin floats,
+// held low by the pull-down the pin map requires on the amplifier side.
+core::arch::global_asm!(
+    ".section .text.__pre_init,\"ax\"",
+    ".global __pre_init",
+    ".type __pre_init,%function",
+    ".thumb_func",
+    "__pre_init:",
+    "ldr r0, =0x40023830",
+    "ldr r1, [r0]",
+    "orr r1, r1, #0x10",
+    "str r1, [r0]",
+    "ldr r1, [r0]",
+    "ldr r0, =0x40021018",
+    "mov r1, #0x80000000",
+    "str r1, [r0]",
+    "ldr r0, =0x40021000",
+    "ldr r1, [r0]",
+    "bic r1, r1, #0xC0000000",
+    "orr r1, r1, #0x40000000",
+    "str r1, [r0]",
+    "bx lr",
+    ".size __pre_init, . - __pre_init",
+);
+
+/// A fault's cause, kept across the reset that follows it: `.uninit` is
+/// neither zeroed nor loaded by cortex-m-rt. A mark in the upper 24 bits
+/// tells a stored cause from RAM's power-on contents
+/// (`shared::safety::reset_word`).
+#[link_section = ".uninit.FAIL_SAFE"]
+static mut LAST_RUN_FAULT: core::mem::MaybeUninit<u32> = core::mem::MaybeUninit::uninit();
+
+/// Keeps `fault` for the next boot unless this run already kept one (a
+/// panic's `udf` ends in HardFault: the panic is the cause to report).
+fn remember_fault(fault: BoardFault) {
+    // SAFETY: a word-aligned static of our own (`init` cleared it at boot),
+    // read and written with volatile accesses; handlers may race it, and
+    // either value is a valid fault.
+    unsafe {
+        let slot = core::ptr::addr_of_mut!(LAST_RUN_FAULT).cast::<u32>();
+        if shared::safety::fault_from_reset_word(slot.read_volatile()).is_none() {
+            slot.write_volatile(shared::safety::reset_word(fault));
+        }
+    }
+}
+
+/// The cause the previous run left, cleared so the next boot sees only its own.
+fn take_remembered_fault() -> Option<BoardFault> {
+    // SAFETY: as in `remember_fault`; any bit pattern is a valid u32.
+    let word = unsafe {
+        let slot = core::ptr::addr_of_mut!(LAST_RUN_FAULT).cast::<u32>();
+        let word = slot.read_volatile();
+        slot.write_volatile(0);
+        word
+    };
+    shared::safety::fault_from_reset_word(word)
+}
+
+/// A fault handler's duties once the drives are off (each handler calls
+/// [`drives_off_now`] itself, first, inlined: not behind a call that the
+/// optimiser may keep out of line): the cause latched for the control loop
+/// and kept for the next boot.
+fn latch_and_remember(fault: BoardFault) {
+    fail_safe::latch(fault);
+    remember_fault(fault);
+}
 
 bind_interrupts!(struct Irqs {
     USART2 => BufferedInterruptHandler<USART2>;
@@ -124,10 +230,19 @@ impl core::fmt::Display for InitError {
 /// once, first in `main`.
 pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
     let reset_by_watchdog = watchdog::take_iwdg_reset_flag();
+    let last_run_fault = take_remembered_fault();
     let p = embassy_stm32::init(clock::config());
+    if let Some(fault) = last_run_fault {
+        fail_safe::latch(fault);
+        defmt::error!(
+            "the last run ended in {}: drives off until the host acknowledges",
+            fault
+        );
+    }
     if reset_by_watchdog {
+        fail_safe::latch(BoardFault::WatchdogReset);
         defmt::warn!(
-            "last reset by the independent watchdog: the control loop had stopped, the drives went off"
+            "last reset by the independent watchdog: the control loop had stopped, the drives went off; they stay off until the host acknowledges"
         );
     }
     let sys_hz = embassy_stm32::rcc::clocks(&p.RCC)
@@ -206,16 +321,56 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
     })
 }
 
-/// Logs where, then stops the core on an undefined instruction (a probe
-/// attached sees the fault; without one the independent watchdog resets the
-/// board). The location only, not the message: formatting it would link
-/// core::fmt (several KB of flash) for panic sites the panic-free code never
-/// reaches.
+/// Drops the enable first, then logs where, then stops the core on an
+/// undefined instruction (a probe attached sees the fault; without one the
+/// independent watchdog resets the board). The location only, not the
+/// message: formatting it would link core::fmt (several KB of flash) for
+/// panic sites the panic-free code never reaches.
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
+    drives_off_now();
+    latch_and_remember(BoardFault::Panic);
     match info.location() {
         Some(at) => defmt::error!("panic at {=str}:{=u32}", at.file(), at.line()),
         None => defmt::error!("panic"),
     }
     cortex_m::asm::udf()
+}
+
+/// Drops the enable first; then waits for the watchdog's reset (if it is not
+/// armed yet the board stays here, drives off).
+#[cortex_m_rt::exception]
+unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
+    drives_off_now();
+    latch_and_remember(BoardFault::HardFault);
+    defmt::error!("hard fault at pc={=u32:#x}; drives off", frame.pc());
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+/// An interrupt (or NMI) with no handler of its own: the enable drops first,
+/// the fault is latched, and an external interrupt is masked so that it does
+/// not fire again; the firmware runs on, drives off, until the host
+/// acknowledges.
+#[cortex_m_rt::exception]
+unsafe fn DefaultHandler(irqn: i16) {
+    // Not kept across a reset: none follows, the host acknowledges this one.
+    drives_off_now();
+    fail_safe::latch(BoardFault::UnexpectedInterrupt);
+    if let Ok(line) = u16::try_from(irqn) {
+        cortex_m::peripheral::NVIC::mask(UnexpectedLine(line));
+    }
+    defmt::error!("unexpected interrupt {}; drives off", irqn);
+}
+
+/// An NVIC line by number, to mask one the firmware did not expect.
+#[derive(Clone, Copy)]
+struct UnexpectedLine(u16);
+
+// SAFETY: the number came from the active exception, so the line exists.
+unsafe impl cortex_m::interrupt::InterruptNumber for UnexpectedLine {
+    fn number(self) -> u16 {
+        self.0
+    }
 }

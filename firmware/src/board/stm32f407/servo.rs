@@ -16,10 +16,26 @@
 //!
 //! PWM is edge-aligned, active high, 20 kHz: a period of 8400 timer counts on
 //! TIM9-11 and 4200 on TIM13/14 (their APB1 timer clock is half), so the duty
-//! resolution is 1/8400 or 1/4200 of the rated torque. The compare registers
-//! are preloaded: a new duty takes effect at the next PWM period (at most
-//! 50 us later), the direction line at once, so on a sign change the old
-//! magnitude drives the new direction for at most one PWM period.
+//! resolution is 1/8400 or 1/4200 of the rated torque.
+//!
+//! Direction and duty change together. The compare registers are preloaded
+//! (a new duty takes effect at the timer's next update event, the next PWM
+//! period, at most 50 us later) while a direction line changes at once, so
+//! writing the direction first would drive the old magnitude the new way for
+//! up to one PWM period at every zero crossing. At a sign change a drive
+//! therefore writes duty 0, forces an update event (TIMx_EGR.UG: the zero
+//! takes effect now and the PWM period restarts with the output low), then
+//! switches the direction line, then writes the new duty, which takes effect
+//! at the next update event (`shared::safety::reversal`, whose test checks
+//! the order against a model of the preloaded timer). In between the drive
+//! delivers zero torque for under one PWM period. TIM9 carries joints 1 and
+//! 2: a forced update on one also applies the other's preloaded duty (its
+//! newest command) early and restarts its period once, which is harmless.
+//! Without a sign change only the duty is written.
+//!
+//! Each joint torque passes through the joint's motor sign
+//! (`super::JOINT_SIGNS`) on its way to the drive, and the enable is not
+//! raised while a board fault is latched (`crate::board::fail_safe`).
 
 use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
 use embassy_stm32::peripherals::{
@@ -31,10 +47,13 @@ use embassy_stm32::timer::low_level::CountingMode;
 use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm, SimplePwmChannel};
 use embassy_stm32::Peri;
 
+use embassy_stm32::pac;
 use shared::robot::table::TORQUE_MAX;
+use shared::safety::{sign_magnitude_steps, DriveStep};
 
 use super::sign_magnitude::{duty_counts, torque_to_command, SignMagnitude};
-use crate::board::JOINTS;
+use super::JOINT_SIGNS;
+use crate::board::{fail_safe, JOINTS};
 
 /// PWM carrier frequency: above hearing, and 8400 counts of resolution at
 /// 168 MHz.
@@ -111,6 +130,18 @@ impl MagnitudeChannel {
         }
     }
 
+    /// Forces an update event on the channel's timer (EGR.UG): the preloaded
+    /// duty takes effect now and the counter restarts.
+    fn apply_now(&mut self) {
+        match self {
+            MagnitudeChannel::Tim9(_) => pac::TIM9.egr().write(|w| w.set_ug(true)),
+            MagnitudeChannel::Tim10(_) => pac::TIM10.egr().write(|w| w.set_ug(true)),
+            MagnitudeChannel::Tim11(_) => pac::TIM11.egr().write(|w| w.set_ug(true)),
+            MagnitudeChannel::Tim13(_) => pac::TIM13.egr().write(|w| w.set_ug(true)),
+            MagnitudeChannel::Tim14(_) => pac::TIM14.egr().write(|w| w.set_ug(true)),
+        }
+    }
+
     fn enable(&mut self) {
         match self {
             MagnitudeChannel::Tim9(ch) => ch.enable(),
@@ -126,6 +157,8 @@ impl MagnitudeChannel {
 struct Drive {
     magnitude: MagnitudeChannel,
     direction: Output<'static>,
+    /// Where the direction line stands (`true`: reverse).
+    line_reverse: bool,
 }
 
 impl Drive {
@@ -135,16 +168,23 @@ impl Drive {
         Drive {
             magnitude,
             direction,
+            line_reverse: false,
         }
     }
 
+    /// Direction and duty together: see the module documentation.
     fn command(&mut self, command: SignMagnitude) {
-        self.direction.set_level(if command.reverse {
-            Level::High
-        } else {
-            Level::Low
-        });
-        self.magnitude.set_duty(command.duty);
+        for step in sign_magnitude_steps(self.line_reverse, command.reverse, command.duty) {
+            match step {
+                DriveStep::Duty(duty) => self.magnitude.set_duty(duty),
+                DriveStep::ApplyNow => self.magnitude.apply_now(),
+                DriveStep::Direction(reverse) => {
+                    self.direction
+                        .set_level(if reverse { Level::High } else { Level::Low });
+                    self.line_reverse = reverse;
+                }
+            }
+        }
     }
 }
 
@@ -210,16 +250,27 @@ impl ServoAmplifiers {
         ServoAmplifiers { drives, enable }
     }
 
-    /// Writes the six torques (already validated finite by the caller) as
-    /// direction and duty, then enables the amplifiers.
+    /// Writes the six joint torques (already validated finite by the
+    /// caller), each through its joint's motor sign, as direction and duty,
+    /// then enables the amplifiers, unless a board fault is latched: then
+    /// they are disabled instead (a handler that ran after this period's
+    /// checks must not see its enable raised again).
     pub fn drive(&mut self, torque_nm: &[f32; JOINTS]) {
-        for ((drive, &tau), &rated) in self
+        if fail_safe::latched().is_some() {
+            self.disable();
+            return;
+        }
+        for (joint, ((drive, &tau), &rated)) in self
             .drives
             .iter_mut()
             .zip(torque_nm.iter())
             .zip(TAU_RATED_NM.iter())
+            .enumerate()
         {
-            drive.command(torque_to_command(tau, rated));
+            drive.command(torque_to_command(
+                JOINT_SIGNS.motor_torque(joint, tau),
+                rated,
+            ));
         }
         self.enable.set_high();
     }
