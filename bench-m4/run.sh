@@ -2,8 +2,8 @@
 # Build the bench for the Cortex-M4F and run it on the emulated mps2-an386 with
 # one virtual nanosecond per instruction (-icount shift=0).
 #
-#   bench-m4/run.sh                          # the firmware's profile (opt-level "s")
-#   BENCH_PROFILE=release bench-m4/run.sh    # opt-level 3, for comparison
+#   bench-m4/run.sh                          # the firmware's profile (opt-level 3)
+#   BENCH_PROFILE=release bench-m4/run.sh    # the host release profile, for comparison
 set -euo pipefail
 cd "$(dirname "$0")/.."
 profile="${BENCH_PROFILE:-firmware}"

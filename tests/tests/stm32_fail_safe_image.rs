@@ -5,11 +5,12 @@
 //! `scripts/build-firmware` leaves (`target/firmware/stm32f407.elf`, or
 //! `FIRMWARE_STM32_ELF`) and follows each function's Thumb code to its first
 //! store: its base register must hold GPIOE_BSRR's address, loaded from the
-//! literal pool, with no branch-and-link before it. Without the image (the
+//! literal pool or formed by MOVW/MOVT, with no branch-and-link before it. Without the image (the
 //! firmware not built) the test says so and passes.
 //!
 //! Only what the handlers need is decoded: 16-bit PC-relative LDR (the
-//! literal loads), 16-bit STR and 32-bit STR.W (stores), BL (calls), BX LR.
+//! literal loads), MOVW/MOVT, 16-bit STR and 32-bit STR.W (stores), BL
+//! (calls), BX LR.
 
 use std::path::PathBuf;
 
@@ -140,6 +141,25 @@ impl Image {
                 if hw & 0xfff0 == 0xf8c0 {
                     let rn = usize::from(hw & 0xf);
                     stores.push(base.get(rn).copied().flatten());
+                }
+                // MOVW / MOVT Rd, #imm16 (T3): how an image built for speed
+                // forms an address, where one built for size loads it from
+                // the literal pool.
+                let movw = hw & 0xfbf0 == 0xf240;
+                let movt = hw & 0xfbf0 == 0xf2c0;
+                if (movw || movt) && hw2 & 0x8000 == 0 {
+                    let imm16 = (u32::from(hw & 0xf) << 12)
+                        | (u32::from((hw >> 10) & 1) << 11)
+                        | (u32::from((hw2 >> 12) & 7) << 8)
+                        | u32::from(hw2 & 0xff);
+                    let rd = usize::from((hw2 >> 8) & 0xf);
+                    if let Some(slot) = base.get_mut(rd) {
+                        *slot = if movw {
+                            Some(imm16)
+                        } else {
+                            slot.map(|low| (low & 0xffff) | (imm16 << 16))
+                        };
+                    }
                 }
                 pc += 4;
                 continue;
