@@ -70,16 +70,21 @@ pub fn firmware_elf_path() -> PathBuf {
     if let Some(path) = std::env::var_os(ELF_ENV) {
         return PathBuf::from(path);
     }
+    target_dir().join("thumbv7em-none-eabihf/firmware/firmware")
+}
+
+/// The workspace's cargo target directory: `$CARGO_TARGET_DIR` (relative to
+/// the workspace when relative), else `target/` beside the workspace root.
+pub fn target_dir() -> PathBuf {
     let workspace = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let target = std::env::var_os("CARGO_TARGET_DIR")
         .map(PathBuf::from)
         .unwrap_or_else(|| workspace.join("target"));
-    let target = if target.is_absolute() {
+    if target.is_absolute() {
         target
     } else {
         workspace.join(target)
-    };
-    target.join("thumbv7em-none-eabihf/firmware/firmware")
+    }
 }
 
 /// Checks that `path` is a 32-bit little-endian ARM ELF whose entry point

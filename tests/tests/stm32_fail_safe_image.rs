@@ -23,16 +23,7 @@ fn image_path() -> PathBuf {
     if let Some(path) = std::env::var_os("FIRMWARE_STM32_ELF") {
         return PathBuf::from(path);
     }
-    let workspace = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| workspace.join("target"));
-    let target = if target.is_absolute() {
-        target
-    } else {
-        workspace.join(target)
-    };
-    target.join("firmware/stm32f407.elf")
+    integration_tests::qemu::target_dir().join("firmware/stm32f407.elf")
 }
 
 fn u16_at(bytes: &[u8], at: usize) -> Option<u16> {
