@@ -134,6 +134,17 @@ pub enum ErrorCode {
     /// A cell configuration was refused; `detail` is the index of the first bad
     /// field in `CellConfig`'s declaration order.
     BadConfiguration,
+    /// A cell configuration was refused because the cell was not ready for
+    /// one: the pick was moving the arm, a joint was not at rest, the gripper
+    /// held a part, or the drives were on (`shared::safety::reconfigure`).
+    /// `detail` is `ReconfigureRefusal::detail`: the kind in the upper 16 bits
+    /// (1 pick active, 2 joint moving, 3 motion unknown, 4 gripper holds,
+    /// 5 drives on), the pick phase's or joint's index in the lower 16. The
+    /// running controller is kept; send the configuration again once the
+    /// pick has ended and the arm is at rest. Appended last, so every older
+    /// message keeps its encoding; a host built before it decodes this one
+    /// report as a bad message and still sees no `Ack` of its configuration.
+    ConfigurationRefusedActive,
 }
 
 impl ErrorCode {

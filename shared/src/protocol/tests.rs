@@ -85,6 +85,8 @@ fn arb_code() -> impl Strategy<Value = ErrorCode> {
         Just(ErrorCode::UnsupportedVersion),
         Just(ErrorCode::HandshakeRequired),
         Just(ErrorCode::UnexpectedMessage),
+        Just(ErrorCode::BadConfiguration),
+        Just(ErrorCode::ConfigurationRefusedActive),
     ]
 }
 
