@@ -15,7 +15,8 @@
 //! - servo amplifiers: sign-magnitude PWM at 20 kHz on TIM9 CH1/CH2, TIM10,
 //!   TIM11, TIM13, TIM14 CH1, direction lines PE7/8/10/12/13/14, enable PE15
 //!   ([`servo`], [`sign_magnitude`]);
-//! - gripper PD0, camera trigger PD1, part-present switch PD4 ([`plant`]);
+//! - gripper PD0, camera trigger PD1, part-present switch PD4, emergency
+//!   stop PD8, amplifier fault PD9, holding brakes PD10 ([`plant`]);
 //! - cycle counter: the DWT's CYCCNT ([`cycles`]);
 //! - the independent watchdog (IWDG), armed by the control loop's first
 //!   period, 32 ms nominal ([`watchdog`]); `init` logs a reset it caused.
@@ -72,15 +73,19 @@ use super::{fail_safe, Board, ControlSource};
 /// not rewired by trial and error or found by a runaway.
 pub const JOINT_SIGNS: JointSigns = JointSigns::AS_WIRED;
 
-/// Drops the amplifier enable (PE15) with one store to GPIOE's BSRR: no HAL
+/// Drops the amplifier enable (PE15) with one store to GPIOE's BSRR, then
+/// the brake release (PD10, the brakes engage) with one to GPIOD's: no HAL
 /// state, no lock, so any handler can call it first, whatever the firmware
-/// was doing. Harmless before the pin is an output (its output latch is then
-/// low already, see `__pre_init`).
+/// was doing. Harmless before the pins are outputs (their output latches
+/// are then low already: PE15 by `__pre_init`, PD10 from reset).
 #[inline(always)]
 pub fn drives_off_now() {
     embassy_stm32::pac::GPIOE
         .bsrr()
         .write(|w| w.set_br(15, true));
+    embassy_stm32::pac::GPIOD
+        .bsrr()
+        .write(|w| w.set_br(10, true));
 }
 
 // The first code after reset (cortex-m-rt calls `__pre_init` before it
@@ -309,6 +314,9 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
         gripper: Output::new(p.PD0, Level::Low, Speed::Low),
         camera_trigger: Output::new(p.PD1, Level::Low, Speed::Low),
         part_present: Input::new(p.PD4, Pull::Down),
+        emergency_stop_ok: Input::new(p.PD8, Pull::Down),
+        drive_fault_n: Input::new(p.PD9, Pull::Up),
+        brake_release: Output::new(p.PD10, Level::Low, Speed::Low),
     });
 
     Ok(Board {
