@@ -285,7 +285,22 @@ pub async fn control_loop(
         // Every period, configured or not; the first one arms it.
         watchdog.feed();
         if let Some(configured) = CONTROL_CONFIG.try_take() {
-            if configure(&mut pick, &mut reported_estimate, &configured) {
+            // Measured on its own: it runs with the arm at rest (the link
+            // accepted it through the reconfiguration gate), so it is not
+            // this period's control cost or a deadline miss.
+            let reconfigure_started = cycles.now();
+            let accepted = configure(&mut pick, &mut reported_estimate, &configured);
+            let reconfigure_cost = cycles
+                .now()
+                .wrapping_sub(reconfigure_started)
+                .saturating_mul(cycles.scale());
+            stats::record_reconfigure(reconfigure_cost);
+            defmt::info!(
+                "control loop: reconfigured in {} {}",
+                reconfigure_cost,
+                cycles.unit()
+            );
+            if accepted {
                 // The host's acknowledgement of any drive fault: it has
                 // started over with a new configuration and a new pick.
                 if let Some(fault) = interlock.fault() {

@@ -254,6 +254,13 @@ pub struct RuntimeReport {
     /// pick's phase at its end (where to look for the cost).
     pub control_worst_tick: u64,
     pub control_worst_phase: PickPhase,
+    /// The last accepted reconfiguration's cost (building the new pick in
+    /// the control loop; 0 before any). It runs in a control period of its
+    /// own, with the arm at rest (`shared::safety::reconfigure`), and is not
+    /// counted in `control_worst` or as a deadline miss. Appended last: a
+    /// host built before it refuses this message as a bad frame (postcard
+    /// allows no trailing bytes), every other message is unchanged.
+    pub reconfigure_cost: u32,
 }
 
 impl RuntimeReport {
@@ -275,6 +282,7 @@ impl RuntimeReport {
             late_results: 0,
             control_worst_tick: 0,
             control_worst_phase: PickPhase::Idle,
+            reconfigure_cost: 0,
         }
     }
 }
