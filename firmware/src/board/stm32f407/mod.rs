@@ -78,16 +78,27 @@ use super::{fail_safe, Board, ControlSource};
 /// not rewired by trial and error or found by a runaway.
 pub const JOINT_SIGNS: JointSigns = JointSigns::AS_WIRED;
 
-/// Drops the amplifier enable (PE15) with one store to GPIOE's BSRR, then
-/// the brake release (PD10, the brakes engage) with one to GPIOD's: no HAL
+/// Drops the amplifier enable (PE15) with one store to GPIOE's BSRR: no HAL
 /// state, no lock, so any handler can call it first, whatever the firmware
-/// was doing. Harmless before the pins are outputs (their output latches
-/// are then low already: PE15 by `__pre_init`, PD10 from reset).
+/// was doing. Harmless before the pin is an output (its output latch is then
+/// low already, see `__pre_init`). One store only: with the brake's store
+/// beside it the size-tuned build outlined the pair into a shared function,
+/// a call before the enable drops (the image test caught it).
 #[inline(always)]
 pub fn drives_off_now() {
     embassy_stm32::pac::GPIOE
         .bsrr()
         .write(|w| w.set_br(15, true));
+}
+
+/// Drops the brake release (PD10): the holding brakes engage. Each fault
+/// handler calls it after [`drives_off_now`] and its first call (in
+/// `latch_and_remember`, or after the latch in `DefaultHandler`): called
+/// right after the store, the size-tuned build outlined "store, call" into
+/// one shared function, a call before the enable drops. Harmless before the pin is an output (its latch is low from
+/// reset).
+#[inline(never)]
+pub fn brakes_on_now() {
     embassy_stm32::pac::GPIOD
         .bsrr()
         .write(|w| w.set_br(10, true));
@@ -158,9 +169,10 @@ fn take_remembered_fault() -> Option<BoardFault> {
 
 /// A fault handler's duties once the drives are off (each handler calls
 /// [`drives_off_now`] itself, first, inlined: not behind a call that the
-/// optimiser may keep out of line): the cause latched for the control loop
-/// and kept for the next boot.
+/// optimiser may keep out of line): the brakes engaged, the cause latched
+/// for the control loop and kept for the next boot.
 fn latch_and_remember(fault: BoardFault) {
+    brakes_on_now();
     fail_safe::latch(fault);
     remember_fault(fault);
 }
@@ -474,6 +486,7 @@ unsafe fn DefaultHandler(irqn: i16) {
     // Not kept across a reset: none follows, the host acknowledges this one.
     drives_off_now();
     fail_safe::latch(BoardFault::UnexpectedInterrupt);
+    brakes_on_now();
     if let Ok(line) = u16::try_from(irqn) {
         cortex_m::peripheral::NVIC::mask(UnexpectedLine(line));
     }
