@@ -8,6 +8,9 @@
 //! literal pool or formed by MOVW/MOVT, with no branch-and-link before it. Without the image (the
 //! firmware not built) the test says so and passes.
 //!
+//! MemManage (the stack guard's fault) is checked the same way. A second
+//! test checks that the RTT log has no blocking writer.
+//!
 //! Only what the handlers need is decoded: 16-bit PC-relative LDR (the
 //! literal loads), MOVW/MOVT, 16-bit STR and 32-bit STR.W (stores), BL
 //! (calls), BX LR.
@@ -214,6 +217,10 @@ fn the_stm32_image_drops_the_enable_first() {
             "the default handler",
             Box::new(|n: &str| n == "DefaultHandler"),
         ),
+        (
+            "MemManage (the stack guard)",
+            Box::new(|n: &str| n == "MemoryManagement"),
+        ),
     ] {
         let (name, start, size) = image.function(matches);
         let (stores, _) = image.stores_before_any_call(start, size);
@@ -223,4 +230,30 @@ fn the_stm32_image_drops_the_enable_first() {
             "{what} ({name}) must drop the enable (a store to GPIOE_BSRR) before anything else: stores before its first call {stores:x?}"
         );
     }
+}
+
+/// The RTT log never waits for the probe (defmt-rtt's `disable-blocking-mode`):
+/// its blocking writer, which spins with interrupts masked while the buffer
+/// is full, is not in the image at all.
+#[test]
+fn the_stm32_log_never_blocks() {
+    let path = image_path();
+    let Ok(bytes) = std::fs::read(&path) else {
+        eprintln!(
+            "{}: not built (scripts/build-firmware); nothing to check",
+            path.display()
+        );
+        return;
+    };
+    let image = Image::parse(bytes);
+    let writers: Vec<_> = image
+        .symbols
+        .iter()
+        .filter(|(n, ..)| n.contains("blocking_write"))
+        .map(|(n, ..)| n.clone())
+        .collect();
+    assert!(
+        writers.iter().all(|n| n.contains("nonblocking_write")),
+        "a blocking RTT writer is linked: {writers:?}"
+    );
 }

@@ -30,7 +30,11 @@ use shared::app::pick::handoff::{ControlEvent, WorkItem};
 use shared::app::pick::settings::PickSettings;
 use shared::app::pick::{PickController, MAX_TICK_MESSAGES};
 use shared::protocol::{FaultCause, GripperCommand, Message, PickPhase, SensorSample};
-use shared::safety::{DriveInterlock, EncoderMotion, InterlockFault, InterlockOutput, PeriodInput};
+use shared::safety::{
+    check_reconfigure, BoardFault, CellState, DeadlineMonitor, DriveInterlock, EncoderMotion,
+    InterlockFault, InterlockOutput, Parking, ParkingInput, ParkingOutput, PeriodInput,
+    REST_SPEED_RAD_S,
+};
 
 use super::channels::{
     Configured, COMMANDS, CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, REPORTS, SAMPLES, TRIGGERS,
@@ -55,6 +59,16 @@ pub const LINK_TIMEOUT_US: u32 = 500_000;
 /// (written by the link task; compared with wrapping arithmetic, which is
 /// exact for gaps under 71 minutes).
 pub static LAST_HOST_FRAME_US: AtomicU32 = AtomicU32::new(0);
+/// Whether a new configuration may replace the pick, as of the last period:
+/// 0 when it may, otherwise the refusal's detail
+/// (`shared::safety::ReconfigureRefusal::detail`, never 0). Written by the
+/// control loop every period, read by the link when a configuration comes:
+/// the link answers it (acknowledgement or refusal) at once, and the control
+/// loop takes an accepted one before it runs another period of the old pick.
+/// The states that pass are ones the old pick does not leave by itself (none
+/// yet, `Done`, `Faulted`, or `Idle` before its first period), so the answer
+/// still holds when the control loop takes the configuration.
+pub static RECONFIGURE_REFUSAL: AtomicU32 = AtomicU32::new(0);
 /// Sequence number of ticker-mode samples.
 static TICKER_SEQ: AtomicU32 = AtomicU32::new(0);
 
@@ -124,10 +138,13 @@ fn configure(
 
 /// The interlock's decision for this period: the checks on a new sample, the
 /// latched state alone on a repeated one (its torques were checked when
-/// first computed). A board fault latched by a handler trips it first.
+/// first computed). A board fault latched by a handler trips it first. The
+/// joint speeds from the encoders (rad/s, `None` until the window is full)
+/// are kept in `speeds` for the reconfiguration gate.
 fn interlock_period(
     interlock: &mut DriveInterlock<'_>,
     motion: &mut EncoderMotion,
+    speeds: &mut Option<[f32; 6]>,
     sample: &SensorSample,
     torque_nm: &[f32; 6],
     phase: PickPhase,
@@ -140,12 +157,67 @@ fn interlock_period(
         return interlock.hold(torque_nm);
     }
     let (q, qd) = motion.update(&sample.joint_counts, sample.time_us);
+    *speeds = qd;
     interlock.period(&PeriodInput {
         torque_nm,
         q_measured_rad: &q,
         qd_measured_rad_s: qd.as_ref(),
         braking: matches!(phase, PickPhase::Stopping | PickPhase::Faulted),
     })
+}
+
+/// Ticker mode: the parking sequence's decision for this period
+/// (`shared::safety::parking`): after the pick has ended and the arm rested,
+/// or after the host link has been lost for a bounded time, the brakes
+/// engage and then the drives go off. In lock step the plant, its drives and
+/// brakes are the simulator's: always active there.
+fn parking_period(
+    parking: &mut Parking,
+    source: ControlSource,
+    sample: &SensorSample,
+    phase: PickPhase,
+    speeds: Option<[f32; 6]>,
+) -> ParkingOutput {
+    if source != ControlSource::Ticker {
+        return ParkingOutput {
+            brake_engaged: false,
+            drives_allowed: true,
+        };
+    }
+    let at_rest = speeds.is_some_and(|qd| qd.iter().all(|v| v.abs() <= REST_SPEED_RAD_S));
+    let before = parking.state();
+    let output = parking.period(&ParkingInput {
+        time_us: sample.time_us,
+        pick_ended: matches!(phase, PickPhase::Done | PickPhase::Faulted),
+        at_rest,
+        since_host_frame_us: (sample.time_us as u32)
+            .wrapping_sub(LAST_HOST_FRAME_US.load(Ordering::Relaxed)),
+    });
+    if parking.state() != before {
+        defmt::info!("parking: {}", parking.state());
+    }
+    output
+}
+
+/// Publishes whether a configuration may replace `controller` now (see
+/// [`RECONFIGURE_REFUSAL`]).
+fn publish_reconfigure(
+    controller: &PickController,
+    speeds: Option<[f32; 6]>,
+    drives_on: bool,
+    source: ControlSource,
+) {
+    let verdict = check_reconfigure(&CellState {
+        phase: Some(controller.phase()),
+        joint_speed_rad_s: speeds,
+        gripper_holds: controller.gripper_holds(),
+        drives_on,
+        drives_off_required: source == ControlSource::Ticker,
+    });
+    RECONFIGURE_REFUSAL.store(
+        verdict.err().map_or(0, |refusal| refusal.detail()),
+        Ordering::Relaxed,
+    );
 }
 
 /// The next sample: from the link in lock step, from the board's encoders on
@@ -160,13 +232,24 @@ async fn next_sample(
         ControlSource::Ticker => {
             ticker.next().await;
             match plant.read_sample() {
-                Ok(reading) => Some(SensorSample {
-                    seq: TICKER_SEQ.fetch_add(1, Ordering::Relaxed),
-                    time_us: Instant::now().as_micros(),
-                    joint_counts: reading.joint_counts,
-                    conveyor_counts: reading.conveyor_counts,
-                    part_in_gripper: reading.part_in_gripper,
-                }),
+                Ok(reading) => {
+                    // Latched: the interlock turns the drives off this
+                    // period and keeps them off until the host acknowledges,
+                    // even if the input returns.
+                    if reading.emergency_stop {
+                        fail_safe::latch(BoardFault::EmergencyStop);
+                    }
+                    if reading.drive_fault {
+                        fail_safe::latch(BoardFault::DriveFault);
+                    }
+                    Some(SensorSample {
+                        seq: TICKER_SEQ.fetch_add(1, Ordering::Relaxed),
+                        time_us: Instant::now().as_micros(),
+                        joint_counts: reading.joint_counts,
+                        conveyor_counts: reading.conveyor_counts,
+                        part_in_gripper: reading.part_in_gripper,
+                    })
+                }
                 Err(e) => {
                     defmt::warn!("control loop: {}", e);
                     None
@@ -187,6 +270,9 @@ pub async fn control_loop(
     let mut interlock = DriveInterlock::new(&crate::board::INTERLOCK_SETTINGS);
     // Replaced with the cell's counts per radian by every configuration.
     let mut motion = EncoderMotion::new(&[0.0; 6]);
+    let mut speeds: Option<[f32; 6]> = None;
+    let mut parking = Parking::new();
+    let mut deadline = DeadlineMonitor::new();
     let mut reported_fault: Option<InterlockFault> = None;
     let mut pick: Option<(u32, PickController)> = None;
     let mut reported_estimate = 0u32;
@@ -199,7 +285,22 @@ pub async fn control_loop(
         // Every period, configured or not; the first one arms it.
         watchdog.feed();
         if let Some(configured) = CONTROL_CONFIG.try_take() {
-            if configure(&mut pick, &mut reported_estimate, &configured) {
+            // Measured on its own: it runs with the arm at rest (the link
+            // accepted it through the reconfiguration gate), so it is not
+            // this period's control cost or a deadline miss.
+            let reconfigure_started = cycles.now();
+            let accepted = configure(&mut pick, &mut reported_estimate, &configured);
+            let reconfigure_cost = cycles
+                .now()
+                .wrapping_sub(reconfigure_started)
+                .saturating_mul(cycles.scale());
+            stats::record_reconfigure(reconfigure_cost);
+            defmt::info!(
+                "control loop: reconfigured in {} {}",
+                reconfigure_cost,
+                cycles.unit()
+            );
+            if accepted {
                 // The host's acknowledgement of any drive fault: it has
                 // started over with a new configuration and a new pick.
                 if let Some(fault) = interlock.fault() {
@@ -209,10 +310,18 @@ pub async fn control_loop(
                 interlock.acknowledge();
                 reported_fault = None;
                 motion = EncoderMotion::new(&configured.config.joint_counts_per_rad);
+                speeds = None;
+                parking.restart();
+                deadline = DeadlineMonitor::new();
             }
         }
         let (Some(sample), Some((session, controller))) = (sample, pick.as_mut()) else {
             plant.disable();
+            if pick.is_none() {
+                // No pick (none yet, or the last configuration failed to
+                // build): the drives are off, so the next one is welcome.
+                RECONFIGURE_REFUSAL.store(0, Ordering::Relaxed);
+            }
             continue;
         };
         drain_news(controller);
@@ -242,6 +351,7 @@ pub async fn control_loop(
         let drives = interlock_period(
             &mut interlock,
             &mut motion,
+            &mut speeds,
             &sample,
             &command.joint_torque_nm,
             controller.phase(),
@@ -258,13 +368,16 @@ pub async fn control_loop(
             }
         }
         command.joint_torque_nm = drives.torque_nm;
+        let park = parking_period(&mut parking, source, &sample, controller.phase(), speeds);
+        let drives_on = drives.enable && park.drives_allowed;
+        publish_reconfigure(controller, speeds, drives_on, source);
         match source {
             ControlSource::LockStep => {
                 if COMMANDS.try_send(command).is_err() {
                     stats::count_dropped_message();
                 }
             }
-            ControlSource::Ticker if !drives.enable => plant.disable(),
+            ControlSource::Ticker if !drives_on => plant.disable(),
             ControlSource::Ticker => {
                 let closed = command.gripper == GripperCommand::Close;
                 if let Err(e) =
@@ -273,6 +386,7 @@ pub async fn control_loop(
                     defmt::error!("control loop: {}; drives off", e);
                     controller.stop(FaultCause::ControlFailure);
                 }
+                plant.set_brakes(park.brake_engaged);
             }
         }
         if let Some(report) = new_report(controller, &mut reported_estimate) {
@@ -295,12 +409,26 @@ pub async fn control_loop(
             .wrapping_sub(started)
             .saturating_mul(cycles.scale());
         if !repeated {
-            stats::record_control(
-                cost,
-                cost > budget,
-                controller.counters().late_results,
-                phase,
-            );
+            let missed = cost > budget;
+            stats::record_control(cost, missed, controller.counters().late_results, phase);
+            // Ticker only: there a late period leaves the arm running on
+            // stale torques. In lock step the plant waits for the command
+            // (its time does not advance), so lateness is only a cost
+            // figure; the emulated `turning` run has 10 periods in a row
+            // over the 168,000-instruction budget about 70 ms in, which
+            // the host's plant never sees.
+            if source == ControlSource::Ticker
+                && deadline.period(missed)
+                && fail_safe::latched().is_none()
+            {
+                // Latched like a handler's fault: the interlock turns the
+                // drives off next period and the pick stops.
+                defmt::error!(
+                    "control loop: {} deadlines missed in a row; stopping",
+                    deadline.in_a_row()
+                );
+                fail_safe::latch(BoardFault::DeadlineMissed);
+            }
         }
     }
 }

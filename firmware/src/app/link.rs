@@ -27,7 +27,7 @@ use super::channels::{
     Configured, COMMANDS, CONTROL_CONFIG, NEWS, OUTGOING, REPORTS, SAMPLES, TRIGGERS, WORK,
     WORKER_CONFIG,
 };
-use super::control_loop::{CONTROL_RATE_HZ, LAST_HOST_FRAME_US};
+use super::control_loop::{CONTROL_RATE_HZ, LAST_HOST_FRAME_US, RECONFIGURE_REFUSAL};
 use super::stats;
 use crate::board::{active, ControlSource, CycleCounter};
 
@@ -84,11 +84,26 @@ impl Session {
     }
 
     /// Starts the pick for a new cell configuration (the acknowledgement),
-    /// or refuses it. Out of line: validating the configuration and building
-    /// the pairer happen once a session, and their temporaries should not be
-    /// on the stack for every other message.
+    /// or refuses it: a bad field, or a cell not ready for one (the pick
+    /// moving, the arm not at rest, a part in the gripper, the drives on: the
+    /// control loop's last verdict, [`RECONFIGURE_REFUSAL`]; then nothing
+    /// changes and the running pick goes on). Out of line: validating the
+    /// configuration and building the pairer happen once a session, and
+    /// their temporaries should not be on the stack for every other message.
     #[inline(never)]
     fn configure(&mut self, config: &CellConfig, message: &Message) -> Option<Message> {
+        let refusal = RECONFIGURE_REFUSAL.load(Ordering::Relaxed);
+        if refusal != 0 {
+            self.responder.count_received();
+            defmt::warn!(
+                "link: configuration refused, cell not at rest ({=u32:#x})",
+                refusal
+            );
+            return Some(Message::ErrorReport {
+                code: shared::protocol::ErrorCode::ConfigurationRefusedActive,
+                detail: refusal,
+            });
+        }
         match Cell::new(config) {
             Ok(_) => {
                 self.sessions = self.sessions.wrapping_add(1);

@@ -39,6 +39,14 @@ pub static MESSAGES_DROPPED: AtomicU32 = AtomicU32::new(0);
 /// Observations, triggers or news dropped between tasks (queue full).
 pub static HANDOFFS_DROPPED: AtomicU32 = AtomicU32::new(0);
 
+/// The last accepted reconfiguration's cost (counter units x scale).
+static RECONFIGURE_COST: AtomicU32 = AtomicU32::new(0);
+
+/// A reconfiguration (building the new pick) cost `cost` units.
+pub fn record_reconfigure(cost: u32) {
+    RECONFIGURE_COST.store(cost, Ordering::Relaxed);
+}
+
 /// Frames from the host the link's decoder refused (written by the link task,
 /// reported by the control loop in the pick's telemetry).
 pub static FRAMES_REJECTED: AtomicU32 = AtomicU32::new(0);
@@ -127,6 +135,7 @@ pub fn report(unit: CostUnit) -> RuntimeReport {
             late_results: costs.late_results,
             control_worst_tick: costs.worst_tick,
             control_worst_phase: costs.worst_phase,
+            reconfigure_cost: RECONFIGURE_COST.load(Ordering::Relaxed),
         }
     })
 }

@@ -132,6 +132,10 @@ pub struct PlantReading {
     pub joint_counts: JointCounts,
     pub conveyor_counts: u32,
     pub part_in_gripper: bool,
+    /// The emergency-stop chain is open (pressed, or a wire broken).
+    pub emergency_stop: bool,
+    /// A servo amplifier's fault output is active.
+    pub drive_fault: bool,
 }
 
 /// The plant side of the control loop: encoders in, servo amplifiers, gripper
@@ -152,8 +156,17 @@ pub trait PlantIo {
         camera_trigger: Option<u32>,
     ) -> Result<(), BoardError>;
 
-    /// Stops driving all joints (zero torque, amplifiers disabled).
+    /// Stops driving all joints (zero torque, amplifiers disabled) and
+    /// engages the holding brakes: an arm without its drives is held only by
+    /// them.
     fn disable(&mut self);
+
+    /// Engages (`true`) or releases the joints' holding brakes, separately
+    /// from the amplifier enable: parking engages them while the drives still
+    /// hold the arm, for as long as they take to bite
+    /// (`shared::safety::parking`). Call after `apply`, so that a release
+    /// follows the drives coming on.
+    fn set_brakes(&mut self, engaged: bool);
 }
 
 /// A free-running counter for measuring the control cycle's cost: CPU cycles

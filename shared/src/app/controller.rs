@@ -10,6 +10,7 @@ use super::pick::cell::ConfigError;
 use super::pick::handoff::{ControlEvent, JobTicket, VisionNews, WorkItem};
 use super::pick::{PickController, PickParts, MAX_TICK_MESSAGES};
 use crate::protocol::{CalibrationReport, CellConfig, DecodeError, ErrorCode, Message};
+use crate::safety::{check_reconfigure, CellState, EncoderMotion, ReconfigureRefusal};
 
 /// Replies one incoming message may produce.
 pub const MAX_REPLIES: usize = MAX_TICK_MESSAGES + 1;
@@ -26,6 +27,11 @@ pub struct ControllerApp {
     sessions: u32,
     jobs: Deque<JobTicket, PENDING_JOBS>,
     reported_estimate: u32,
+    /// Joint speeds from the samples' encoder counts, for the
+    /// reconfiguration gate (the same estimate the firmware's interlock
+    /// makes).
+    motion: EncoderMotion,
+    joint_speed_rad_s: Option<[f32; crate::safety::JOINTS]>,
 }
 
 impl ControllerApp {
@@ -36,7 +42,23 @@ impl ControllerApp {
             sessions: 0,
             jobs: Deque::new(),
             reported_estimate: 0,
+            motion: EncoderMotion::new(&[0.0; crate::safety::JOINTS]),
+            joint_speed_rad_s: None,
         }
+    }
+
+    /// Whether a new configuration may replace the pick now
+    /// (`crate::safety::reconfigure`). The plant is the host's, in lock step:
+    /// its drives are not this controller's to switch off.
+    pub fn may_reconfigure(&self) -> Result<(), ReconfigureRefusal> {
+        let control = self.pick.as_ref().map(|parts| &parts.control);
+        check_reconfigure(&CellState {
+            phase: control.map(PickController::phase),
+            joint_speed_rad_s: self.joint_speed_rad_s,
+            gripper_holds: control.is_some_and(PickController::gripper_holds),
+            drives_on: false,
+            drives_off_required: false,
+        })
     }
 
     pub fn link(&self) -> &LinkResponder {
@@ -65,6 +87,8 @@ impl ControllerApp {
                         .set_link_frames_rejected(self.link.status().frames_rejected);
                     let command = parts.control.on_sensor_sample(sample, &mut extra);
                     if !repeated {
+                        self.joint_speed_rad_s =
+                            self.motion.update(&sample.joint_counts, sample.time_us).1;
                         self.link
                             .set_control_ticks(self.link.status().control_ticks.saturating_add(1));
                     }
@@ -110,12 +134,22 @@ impl ControllerApp {
                     let _ = out.push(reply);
                 }
             }
+            (Message::Configure(_), _)
+                if self.link.session_open() && self.may_reconfigure().is_err() =>
+            {
+                self.link.count_received();
+                if let Err(refusal) = self.may_reconfigure() {
+                    let _ = out.push(refusal_message(refusal));
+                }
+            }
             (Message::Configure(config), _) if self.link.session_open() => {
                 match configure(config, &mut self.sessions) {
                     Ok(parts) => {
                         self.pick = Some(parts);
                         self.jobs.clear();
                         self.reported_estimate = 0;
+                        self.motion = EncoderMotion::new(&config.joint_counts_per_rad);
+                        self.joint_speed_rad_s = None;
                         if let Some(reply) = self.link.handle(message) {
                             let _ = out.push(reply);
                         }
@@ -166,6 +200,15 @@ impl ConfigRefused {
             code: ErrorCode::BadConfiguration,
             detail: config_field_index(self.error.field),
         }
+    }
+}
+
+/// The report refusing a configuration that came while the cell was not
+/// ready for one (the running controller is kept).
+pub fn refusal_message(refusal: ReconfigureRefusal) -> Message {
+    Message::ErrorReport {
+        code: ErrorCode::ConfigurationRefusedActive,
+        detail: refusal.detail(),
     }
 }
 
@@ -224,7 +267,7 @@ fn config_field_index(field: &str) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::protocol::{SensorSample, PROTOCOL_VERSION};
+    use crate::protocol::{PickPhase, SensorSample, PROTOCOL_VERSION};
 
     fn config() -> CellConfig {
         crate::test_cell::test_cell_config(4096, 4)
@@ -282,6 +325,69 @@ mod tests {
         let next = exchange(&mut app, &sample(52));
         assert!(matches!(next.first(), Some(Message::ActuatorCommand(c)) if c.seq == 52));
         assert_eq!(app.link().status().control_ticks, ticks + 1);
+    }
+
+    #[test]
+    fn a_configuration_mid_motion_is_refused_and_the_pick_runs_on() {
+        let mut app = configured();
+        for seq in 1..=20 {
+            exchange(&mut app, &sample(seq));
+        }
+        let phase = app.pick().map(PickController::phase);
+        assert!(
+            !matches!(
+                phase,
+                Some(PickPhase::Idle | PickPhase::Done | PickPhase::Faulted)
+            ),
+            "{phase:?}"
+        );
+        let time_s = app.pick().map(|p| p.time_s());
+        let mut out = Vec::new();
+        app.on_message(&Message::Configure(config()), &mut out);
+        let Some(Message::ErrorReport { code, detail }) = out.first() else {
+            panic!("expected a refusal, got {out:?}");
+        };
+        assert_eq!(*code, ErrorCode::ConfigurationRefusedActive);
+        assert_eq!(detail >> 16, 1, "pick active: {detail:#x}");
+        // The same pick, not a new one from its start.
+        assert_eq!(app.pick().map(|p| p.time_s()), time_s);
+        assert_eq!(app.pick().map(PickController::phase), phase);
+    }
+
+    #[test]
+    fn a_configuration_after_a_stop_at_rest_is_accepted() {
+        let mut app = configured();
+        for seq in 1..=5 {
+            exchange(&mut app, &sample(seq));
+        }
+        if let Some(parts) = app.pick.as_mut() {
+            parts.control.stop(crate::protocol::FaultCause::LinkLost);
+        }
+        // The arm stands still (the samples' counts do not change) while the
+        // pick stops and then holds.
+        let mut seq = 6;
+        while app.pick().map(PickController::phase) != Some(PickPhase::Faulted) && seq < 5_000 {
+            exchange(&mut app, &sample(seq));
+            seq += 1;
+        }
+        for _ in 0..20 {
+            exchange(&mut app, &sample(seq));
+            seq += 1;
+        }
+        assert_eq!(app.may_reconfigure(), Ok(()));
+        let mut out = Vec::new();
+        app.on_message(&Message::Configure(config()), &mut out);
+        assert!(
+            matches!(
+                out.first(),
+                Some(Message::Ack {
+                    kind: crate::protocol::MessageKind::Configure,
+                    ..
+                })
+            ),
+            "{out:?}"
+        );
+        assert_eq!(app.pick().map(PickController::phase), Some(PickPhase::Idle));
     }
 
     #[test]

@@ -17,6 +17,7 @@ pub mod tool;
 pub mod vision;
 
 pub use controller::{
-    configure, new_calibration_report, new_report, ConfigRefused, ControllerApp, MAX_REPLIES,
+    configure, new_calibration_report, new_report, refusal_message, ConfigRefused, ControllerApp,
+    MAX_REPLIES,
 };
 pub use link::LinkResponder;

@@ -134,6 +134,17 @@ pub enum ErrorCode {
     /// A cell configuration was refused; `detail` is the index of the first bad
     /// field in `CellConfig`'s declaration order.
     BadConfiguration,
+    /// A cell configuration was refused because the cell was not ready for
+    /// one: the pick was moving the arm, a joint was not at rest, the gripper
+    /// held a part, or the drives were on (`shared::safety::reconfigure`).
+    /// `detail` is `ReconfigureRefusal::detail`: the kind in the upper 16 bits
+    /// (1 pick active, 2 joint moving, 3 motion unknown, 4 gripper holds,
+    /// 5 drives on), the pick phase's or joint's index in the lower 16. The
+    /// running controller is kept; send the configuration again once the
+    /// pick has ended and the arm is at rest. Appended last, so every older
+    /// message keeps its encoding; a host built before it decodes this one
+    /// report as a bad message and still sees no `Ack` of its configuration.
+    ConfigurationRefusedActive,
 }
 
 impl ErrorCode {
@@ -243,6 +254,13 @@ pub struct RuntimeReport {
     /// pick's phase at its end (where to look for the cost).
     pub control_worst_tick: u64,
     pub control_worst_phase: PickPhase,
+    /// The last accepted reconfiguration's cost (building the new pick in
+    /// the control loop; 0 before any). It runs in a control period of its
+    /// own, with the arm at rest (`shared::safety::reconfigure`), and is not
+    /// counted in `control_worst` or as a deadline miss. Appended last: a
+    /// host built before it refuses this message as a bad frame (postcard
+    /// allows no trailing bytes), every other message is unchanged.
+    pub reconfigure_cost: u32,
 }
 
 impl RuntimeReport {
@@ -264,6 +282,7 @@ impl RuntimeReport {
             late_results: 0,
             control_worst_tick: 0,
             control_worst_phase: PickPhase::Idle,
+            reconfigure_cost: 0,
         }
     }
 }

@@ -85,6 +85,8 @@ fn arb_code() -> impl Strategy<Value = ErrorCode> {
         Just(ErrorCode::UnsupportedVersion),
         Just(ErrorCode::HandshakeRequired),
         Just(ErrorCode::UnexpectedMessage),
+        Just(ErrorCode::BadConfiguration),
+        Just(ErrorCode::ConfigurationRefusedActive),
     ]
 }
 
@@ -175,6 +177,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 late_results: v[9],
                 control_worst_tick: 1234,
                 control_worst_phase: PickPhase::Track,
+                reconfigure_cost: v[0] ^ v[9],
             })
         }),
     ]

@@ -66,6 +66,17 @@ pub enum BoardFault {
     UnexpectedInterrupt,
     /// The independent watchdog reset the board: the last run hung.
     WatchdogReset,
+    /// The emergency-stop input opened (pressed, or its wiring broken).
+    EmergencyStop,
+    /// A servo amplifier signalled a fault on its fault output.
+    DriveFault,
+    /// The control period overran its deadline
+    /// (`crate::safety::deadline::DEADLINE_MISSES_TO_STOP`) times in a row:
+    /// the loop cannot keep its rate, so the arm is no longer controlled.
+    DeadlineMissed,
+    /// The stack reached its guard region (MPU): a stack overflow, caught
+    /// before it overwrote the static data below it.
+    StackOverflow,
 }
 
 /// Why the drives are off.

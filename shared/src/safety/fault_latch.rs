@@ -19,6 +19,10 @@ impl BoardFault {
             BoardFault::HardFault => 2,
             BoardFault::UnexpectedInterrupt => 3,
             BoardFault::WatchdogReset => 4,
+            BoardFault::EmergencyStop => 5,
+            BoardFault::DriveFault => 6,
+            BoardFault::DeadlineMissed => 7,
+            BoardFault::StackOverflow => 8,
         }
     }
 
@@ -28,6 +32,10 @@ impl BoardFault {
             2 => Some(BoardFault::HardFault),
             3 => Some(BoardFault::UnexpectedInterrupt),
             4 => Some(BoardFault::WatchdogReset),
+            5 => Some(BoardFault::EmergencyStop),
+            6 => Some(BoardFault::DriveFault),
+            7 => Some(BoardFault::DeadlineMissed),
+            8 => Some(BoardFault::StackOverflow),
             _ => None,
         }
     }
@@ -86,11 +94,15 @@ pub fn fault_from_reset_word(word: u32) -> Option<BoardFault> {
 mod tests {
     use super::*;
 
-    const ALL: [BoardFault; 4] = [
+    const ALL: [BoardFault; 8] = [
         BoardFault::Panic,
         BoardFault::HardFault,
         BoardFault::UnexpectedInterrupt,
         BoardFault::WatchdogReset,
+        BoardFault::EmergencyStop,
+        BoardFault::DriveFault,
+        BoardFault::DeadlineMissed,
+        BoardFault::StackOverflow,
     ];
 
     #[test]
@@ -118,6 +130,7 @@ mod tests {
             u32::MAX,
             0xFA17_5A00,
             0xFA17_5A09,
+            0xFA17_5AFF,
             0x0000_0001,
             0xFA17_5B01,
         ] {

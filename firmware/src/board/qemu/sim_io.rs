@@ -53,6 +53,10 @@ impl PlantIo for LockStepPlant {
     }
 
     fn disable(&mut self) {}
+
+    /// The simulator's arm has no brake output of ours: its drives' own
+    /// watchdog brakes it.
+    fn set_brakes(&mut self, _engaged: bool) {}
 }
 
 /// TIMER0, free-running.

@@ -75,7 +75,9 @@ impl QuadratureEncoders {
     }
 }
 
-/// Quadrature decoder settings shared by all joints.
+/// Quadrature decoder settings shared by all joints. The input filters are
+/// set after `Qei::new` (`super::filter_encoder_inputs`): its configuration
+/// has no field for them.
 pub fn qei_config() -> QeiConfig {
     QeiConfig::default()
 }

@@ -2,8 +2,12 @@
 //!
 //! Peripheral plan (one owner each, taken here so nothing else can use them;
 //! the full pin map is in `firmware/README.md`):
-//! - clock: 168 MHz from the HSI through the PLL, no crystal needed
-//!   ([`clock`]);
+//! - clock: 168 MHz from the board's 8 MHz crystal (HSE) through the PLL
+//!   ([`clock`]), with the flash accelerator (prefetch, instruction and data
+//!   caches) turned back on after embassy's clock set-up clears it
+//!   ([`registers`]);
+//! - a 256-byte MPU guard at the bottom of the stack (SRAM), whose
+//!   MemManage fault drops the drives ([`registers`]);
 //! - host link: USART2, TX on PA2, RX on PA3, 115 200 baud, interrupt-driven
 //!   with ring buffers (`BufferedUart`);
 //! - time: embassy-stm32's time driver on TIM12 (cargo feature
@@ -15,7 +19,8 @@
 //! - servo amplifiers: sign-magnitude PWM at 20 kHz on TIM9 CH1/CH2, TIM10,
 //!   TIM11, TIM13, TIM14 CH1, direction lines PE7/8/10/12/13/14, enable PE15
 //!   ([`servo`], [`sign_magnitude`]);
-//! - gripper PD0, camera trigger PD1, part-present switch PD4 ([`plant`]);
+//! - gripper PD0, camera trigger PD1, part-present switch PD4, emergency
+//!   stop PD8, amplifier fault PD9, holding brakes PD10 ([`plant`]);
 //! - cycle counter: the DWT's CYCCNT ([`cycles`]);
 //! - the independent watchdog (IWDG), armed by the control loop's first
 //!   period, 32 ms nominal ([`watchdog`]); `init` logs a reset it caused.
@@ -42,6 +47,7 @@ mod cycles;
 mod encoders;
 mod plant;
 mod quadrature;
+mod registers;
 mod servo;
 mod sign_magnitude;
 mod watchdog;
@@ -75,12 +81,27 @@ pub const JOINT_SIGNS: JointSigns = JointSigns::AS_WIRED;
 /// Drops the amplifier enable (PE15) with one store to GPIOE's BSRR: no HAL
 /// state, no lock, so any handler can call it first, whatever the firmware
 /// was doing. Harmless before the pin is an output (its output latch is then
-/// low already, see `__pre_init`).
+/// low already, see `__pre_init`). One store only: with the brake's store
+/// beside it the size-tuned build outlined the pair into a shared function,
+/// a call before the enable drops (the image test caught it).
 #[inline(always)]
 pub fn drives_off_now() {
     embassy_stm32::pac::GPIOE
         .bsrr()
         .write(|w| w.set_br(15, true));
+}
+
+/// Drops the brake release (PD10): the holding brakes engage. Each fault
+/// handler calls it after [`drives_off_now`] and its first call (in
+/// `latch_and_remember`, or after the latch in `DefaultHandler`): called
+/// right after the store, the size-tuned build outlined "store, call" into
+/// one shared function, a call before the enable drops. Harmless before the pin is an output (its latch is low from
+/// reset).
+#[inline(never)]
+pub fn brakes_on_now() {
+    embassy_stm32::pac::GPIOD
+        .bsrr()
+        .write(|w| w.set_br(10, true));
 }
 
 // The first code after reset (cortex-m-rt calls `__pre_init` before it
@@ -148,9 +169,10 @@ fn take_remembered_fault() -> Option<BoardFault> {
 
 /// A fault handler's duties once the drives are off (each handler calls
 /// [`drives_off_now`] itself, first, inlined: not behind a call that the
-/// optimiser may keep out of line): the cause latched for the control loop
-/// and kept for the next boot.
+/// optimiser may keep out of line): the brakes engaged, the cause latched
+/// for the control loop and kept for the next boot.
 fn latch_and_remember(fault: BoardFault) {
+    brakes_on_now();
     fail_safe::latch(fault);
     remember_fault(fault);
 }
@@ -225,6 +247,106 @@ impl core::fmt::Display for InitError {
     }
 }
 
+/// Turns the flash accelerator back on (prefetch, instruction and data
+/// caches): embassy-stm32's clock set-up writes FLASH_ACR whole for the wait
+/// states and clears them (see [`registers`]).
+fn enable_flash_accelerator() {
+    let acr = embassy_stm32::pac::FLASH.acr().as_ptr().cast::<u32>();
+    // SAFETY: FLASH_ACR, written only here after the HAL's clock set-up,
+    // with the values `flash_acr_accelerated` derives from its wait states
+    // (the caches are reset while still disabled, then enabled).
+    unsafe {
+        for value in registers::flash_acr_accelerated(acr.read_volatile()) {
+            acr.write_volatile(value);
+        }
+    }
+}
+
+/// Sets the joint encoders' input filters (TIMx_CCMR1 IC1F, IC2F), which
+/// `Qei::new` leaves off. Call after the six `Qei::new`.
+fn filter_encoder_inputs() {
+    use embassy_stm32::pac;
+    // CCMR1 is at offset 0x18 in every timer.
+    let ccmr1 = [
+        pac::TIM1.as_ptr(),
+        pac::TIM8.as_ptr(),
+        pac::TIM2.as_ptr(),
+        pac::TIM5.as_ptr(),
+        pac::TIM3.as_ptr(),
+        pac::TIM4.as_ptr(),
+    ];
+    for base in ccmr1 {
+        let register = base.cast::<u8>().wrapping_add(0x18).cast::<u32>();
+        // SAFETY: TIMx_CCMR1 of a timer the encoders own (its `Qei` was
+        // built above), in input mode; only the filter fields change, before
+        // the control loop first reads the counts.
+        unsafe {
+            register.write_volatile(registers::ccmr1_with_input_filters(
+                register.read_volatile(),
+                registers::ENCODER_INPUT_FILTER,
+            ));
+        }
+    }
+}
+
+/// Makes the bottom of the stack (`_stack_guard`, the start of SRAM) a
+/// no-access MPU region and enables the MemManage fault, so an overflow
+/// faults there ([`MemoryManagement`]) rather than running on into
+/// whatever lies below.
+fn guard_stack(mpu: &mut cortex_m::peripheral::MPU, scb: &mut cortex_m::peripheral::SCB) {
+    unsafe extern "C" {
+        static _stack_guard: u32;
+    }
+    let base = core::ptr::addr_of!(_stack_guard) as u32;
+    // SAFETY: region 0 is the only MPU region; the default map stays in
+    // force everywhere else (PRIVDEFENA), and nothing runs in the guard (it
+    // is below `_stack_limit`, the painted stack's bottom).
+    unsafe {
+        mpu.rnr.write(0);
+        mpu.rbar.write(registers::mpu_guard_rbar(base));
+        mpu.rasr.write(registers::mpu_guard_rasr());
+        mpu.ctrl.write(registers::MPU_CTRL_GUARD);
+    }
+    cortex_m::asm::dsb();
+    cortex_m::asm::isb();
+    scb.enable(cortex_m::peripheral::scb::Exception::MemoryManagement);
+}
+
+// MemManage: the stack reached its guard. The fault may have come while an
+// exception frame was being stacked, so SP points into the guard and any
+// push would fault again: drop the enable (PE15) and the brake release
+// (PD10) with one store each, move MSP back to the top of the stack (all
+// that was on it is abandoned), and only then call Rust.
+core::arch::global_asm!(
+    ".section .text.MemoryManagement,\"ax\"",
+    ".global MemoryManagement",
+    ".type MemoryManagement,%function",
+    ".thumb_func",
+    "MemoryManagement:",
+    "ldr r0, =0x40021018",
+    "mov r1, #0x80000000",
+    "str r1, [r0]",
+    "ldr r0, =0x40020C18",
+    "mov r1, #0x04000000",
+    "str r1, [r0]",
+    "ldr r0, =_stack_start",
+    "msr msp, r0",
+    "b {overflow}",
+    ".size MemoryManagement, . - MemoryManagement",
+    overflow = sym stack_overflow,
+);
+
+/// The rest of the MemManage handler, on a fresh stack: latch and keep the
+/// cause, then wait for the watchdog's reset (the interrupted code cannot be
+/// resumed: its stack is gone).
+extern "C" fn stack_overflow() -> ! {
+    latch_and_remember(BoardFault::StackOverflow);
+    defmt::error!("stack overflow (MPU guard); drives off");
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
 /// Brings up the clock tree, the time driver, USART2 and the plant I/O with
 /// every amplifier disabled, and sets up the IWDG without starting it. Call
 /// once, first in `main`.
@@ -232,6 +354,7 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
     let reset_by_watchdog = watchdog::take_iwdg_reset_flag();
     let last_run_fault = take_remembered_fault();
     let p = embassy_stm32::init(clock::config());
+    enable_flash_accelerator();
     if let Some(fault) = last_run_fault {
         fail_safe::latch(fault);
         defmt::error!(
@@ -274,8 +397,9 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
         enable: p.PE15,
     });
 
-    let core = cortex_m::Peripherals::take().ok_or(InitError::CorePeripheralsTaken)?;
+    let mut core = cortex_m::Peripherals::take().ok_or(InitError::CorePeripheralsTaken)?;
     let cycles = DwtCycles::start(core.DCB, core.DWT);
+    guard_stack(&mut core.MPU, &mut core.SCB);
 
     static mut TX_BUFFER: [u8; UART_BUFFER_LEN] = [0; UART_BUFFER_LEN];
     static mut RX_BUFFER: [u8; UART_BUFFER_LEN] = [0; UART_BUFFER_LEN];
@@ -301,6 +425,7 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
         joint5: Qei::new(p.TIM3, p.PB4, p.PB5, qei_config()),
         joint6: Qei::new(p.TIM4, p.PB6, p.PB7, qei_config()),
     });
+    filter_encoder_inputs();
     let conveyor = conveyor::ConveyorEncoder::start(p.PD2, p.EXTI2, p.PD3, p.EXTI3);
     let plant = Stm32Plant::new(PlantDevices {
         joints,
@@ -309,6 +434,9 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
         gripper: Output::new(p.PD0, Level::Low, Speed::Low),
         camera_trigger: Output::new(p.PD1, Level::Low, Speed::Low),
         part_present: Input::new(p.PD4, Pull::Down),
+        emergency_stop_ok: Input::new(p.PD8, Pull::Down),
+        drive_fault_n: Input::new(p.PD9, Pull::Up),
+        brake_release: Output::new(p.PD10, Level::Low, Speed::Low),
     });
 
     Ok(Board {
@@ -358,6 +486,7 @@ unsafe fn DefaultHandler(irqn: i16) {
     // Not kept across a reset: none follows, the host acknowledges this one.
     drives_off_now();
     fail_safe::latch(BoardFault::UnexpectedInterrupt);
+    brakes_on_now();
     if let Ok(line) = u16::try_from(irqn) {
         cortex_m::peripheral::NVIC::mask(UnexpectedLine(line));
     }

@@ -6,6 +6,20 @@
 //! | gripper | PD0 | out | high = close |
 //! | camera trigger | PD1 | out | high for one control period per trigger |
 //! | part present | PD4 | in, pull-down | high = a part between the closed jaws |
+//! | emergency stop | PD8 | in, pull-down | high = chain closed (run); low = pressed or a wire broken |
+//! | amplifier fault | PD9 | in, pull-up | low = a drive's fault output is active (open-collector outputs, wired-OR) |
+//! | holding brakes | PD10 | out | high = released; low (and at reset, with the brake driver's pull-down) = engaged |
+//!
+//! The emergency-stop and fault inputs are read with every sample and latch
+//! a board fault (`crate::board::fail_safe`): the drive interlock turns the
+//! drives off in that period and keeps them off until the host's next
+//! accepted configuration, whatever the input does in between. The
+//! emergency-stop input is active low so that a broken wire stops the cell
+//! too. It is the controller's side of the stop only: the emergency-stop
+//! chain must also cut the amplifiers' power in hardware (a category 0 stop),
+//! which no firmware can guarantee. The brake line is separate from the
+//! amplifier enable, so that the brakes can bite while the drives still hold
+//! the arm (parking, `shared::safety::parking`); `disable` drops both.
 //!
 //! The camera trigger is a pulse one control period wide (1 ms at the 1 kHz
 //! control rate): `apply` raises it when the controller asks for a frame and
@@ -33,6 +47,9 @@ pub struct Stm32Plant {
     gripper: Output<'static>,
     camera_trigger: Output<'static>,
     part_present: Input<'static>,
+    emergency_stop_ok: Input<'static>,
+    drive_fault_n: Input<'static>,
+    brake_release: Output<'static>,
     /// Conveyor decoder trouble already logged, and samples since.
     conveyor_reported: ConveyorReport,
 }
@@ -61,6 +78,12 @@ pub struct PlantDevices {
     /// PD4, pulled down: the gripper's part-present switch (high = a part
     /// between the closed jaws).
     pub part_present: Input<'static>,
+    /// PD8, pulled down: the emergency-stop chain (high = closed, run).
+    pub emergency_stop_ok: Input<'static>,
+    /// PD9, pulled up: the amplifiers' fault outputs, wired-OR (low = fault).
+    pub drive_fault_n: Input<'static>,
+    /// PD10, created low (brakes engaged): high releases the holding brakes.
+    pub brake_release: Output<'static>,
 }
 
 impl Stm32Plant {
@@ -72,6 +95,9 @@ impl Stm32Plant {
             gripper: devices.gripper,
             camera_trigger: devices.camera_trigger,
             part_present: devices.part_present,
+            emergency_stop_ok: devices.emergency_stop_ok,
+            drive_fault_n: devices.drive_fault_n,
+            brake_release: devices.brake_release,
             conveyor_reported: ConveyorReport {
                 skipped: 0,
                 faults: 0,
@@ -119,6 +145,8 @@ impl PlantIo for Stm32Plant {
             joint_counts,
             conveyor_counts,
             part_in_gripper: self.part_present.is_high(),
+            emergency_stop: self.emergency_stop_ok.is_low(),
+            drive_fault: self.drive_fault_n.is_low(),
         })
     }
 
@@ -150,5 +178,16 @@ impl PlantIo for Stm32Plant {
 
     fn disable(&mut self) {
         self.servos.disable();
+        self.brake_release.set_low();
+    }
+
+    fn set_brakes(&mut self, engaged: bool) {
+        // Never released without the drives on (a latched fault keeps the
+        // enable low even when `apply` ran).
+        if engaged || !self.servos.enabled() {
+            self.brake_release.set_low();
+        } else {
+            self.brake_release.set_high();
+        }
     }
 }

@@ -275,6 +275,11 @@ impl ServoAmplifiers {
         self.enable.set_high();
     }
 
+    /// The enable line is high (the drives are on).
+    pub fn enabled(&self) -> bool {
+        self.enable.is_set_high()
+    }
+
     /// Enable low first (the amplifiers stop at once), then zero duty and
     /// direction lines low, so a later enable starts from zero torque.
     pub fn disable(&mut self) {

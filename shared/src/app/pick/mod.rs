@@ -465,6 +465,13 @@ impl PickController {
         self.fault
     }
 
+    /// The gripper is commanded closed or its switch saw a part at the last
+    /// sample: a new configuration would open it
+    /// (`crate::safety::reconfigure`).
+    pub fn gripper_holds(&self) -> bool {
+        self.gripper == GripperCommand::Close || self.part_in_gripper
+    }
+
     pub fn estimate(&self) -> Option<&CellEstimate> {
         self.estimate.as_ref()
     }
