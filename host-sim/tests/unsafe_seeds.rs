@@ -72,10 +72,8 @@ fn a_fault_after_the_pick_is_done_is_reported_without_a_new_motion() {
 #[test]
 fn a_camera_bumped_during_the_search_never_sends_the_gripper_into_the_disc() {
     let t = replay(7373, 116, FaultKind::CameraBump);
-    assert!(
-        !(t.min_tool_clearance_mm < STRIKE_CLEARANCE_M * 1e3),
-        "{} mm",
-        t.min_tool_clearance_mm
-    );
+    // NaN (the gripper never came over the disc) passes, as in the campaign.
+    let struck = t.min_tool_clearance_mm < STRIKE_CLEARANCE_M * 1e3;
+    assert!(!struck, "{} mm", t.min_tool_clearance_mm);
     assert!(t.stop_cause.is_some() || t.success, "{}", t.result);
 }
