@@ -78,32 +78,10 @@ impl ReconfigureRefusal {
     }
 }
 
-/// `PickPhase`'s index in declaration order (its postcard tag).
+/// `PickPhase`'s index in declaration order (its postcard tag): a fieldless
+/// enum without explicit discriminants casts to exactly that.
 fn phase_index(phase: PickPhase) -> u32 {
-    use PickPhase::*;
-    let order = [
-        Idle,
-        SearchEffector,
-        CalibrateBase,
-        Estimating,
-        Locate,
-        Intercept,
-        Track,
-        Descend,
-        Grasp,
-        Lift,
-        Place,
-        Release,
-        Return,
-        Done,
-        Stopping,
-        Faulted,
-    ];
-    order
-        .iter()
-        .position(|p| *p == phase)
-        .and_then(|i| u32::try_from(i).ok())
-        .unwrap_or(0xFFFF)
+    phase as u32
 }
 
 /// Whether a new configuration may replace the controller now; the first
@@ -243,5 +221,14 @@ mod tests {
         assert_eq!(check_reconfigure(&state), Err(ReconfigureRefusal::DrivesOn));
         state.drives_off_required = false;
         assert_eq!(check_reconfigure(&state), Ok(()));
+    }
+
+    #[test]
+    fn the_phase_index_is_the_postcard_tag() {
+        for phase in [PickPhase::Idle, PickPhase::Locate, PickPhase::Faulted] {
+            let mut buffer = [0u8; 4];
+            let tag = postcard::to_slice(&phase, &mut buffer).map(|b| b.to_vec());
+            assert_eq!(tag, Ok(vec![phase_index(phase) as u8]), "{phase:?}");
+        }
     }
 }
