@@ -2,7 +2,7 @@
 //!
 //! The same code runs in the firmware (Cortex-M4F) and in the host simulator.
 //! Frames, units and the observation contract follow
-//! `../shared/spec/frames-and-log.md`; equation numbers refer to Ghosh, Xiao,
+//! `docs/reference/frames-and-log.md`; equation numbers refer to Ghosh, Xiao,
 //! Xi and Tarn, "Multisensor-based robotic manipulation in an uncalibrated
 //! manufacturing workcell".
 //!

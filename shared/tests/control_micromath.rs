@@ -1,5 +1,5 @@
 //! What micromath's approximations would cost in the f32 control step,
-//! measured against the reference vectors (`shared/vectors/puma560-public.json`).
+//! measured against the reference vectors (`shared/tests/vectors/puma560-public.json`).
 //!
 //! The controller's model evaluates `sin`/`cos` of the six joints once per step
 //! (`JointTrig`), and everything else (frame chain, Jacobian, `Jdot qd`, RNEA)
@@ -14,7 +14,7 @@ use shared::robot::{JointTrig, Puma560, SinCos};
 
 const VECTORS: &str = include_str!(concat!(
     env!("CARGO_MANIFEST_DIR"),
-    "/../../shared/vectors/puma560-public.json"
+    "/tests/vectors/puma560-public.json"
 ));
 
 fn vec6(v: &serde_json::Value) -> Vector6<f64> {

@@ -7,7 +7,7 @@ use shared::robot::{JointVector, Puma560};
 
 const VECTORS: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
-    "/../../shared/vectors/puma560-public.json"
+    "/tests/vectors/puma560-public.json"
 );
 
 /// One reference case, all quantities in f64.
