@@ -12,6 +12,7 @@
 //! - [`calibration`]: virtual rotation, part localisation, robot-to-disc self-calibration (Sections 2 and 3).
 //! - [`robot`]: PUMA 560 kinematics and dynamics (Section 4, Eq 16).
 //! - [`control`]: task-space computed-torque control (Eq 23).
+//! - [`detection`]: bright round marks in a grayscale image, sub-pixel, in fixed memory (the vision front end).
 //! - [`kernels`]: straight-line small-vector kernels of the control period (the firmware is built for size).
 //! - [`safety`]: the drive interlock and the drives' wiring signs (drives that fail safe).
 //! - [`app`]: the controller application that the firmware and the in-process simulator both run.
@@ -30,6 +31,7 @@
 pub mod app;
 pub mod calibration;
 pub mod control;
+pub mod detection;
 pub mod fusion;
 pub mod kernels;
 pub mod observation;

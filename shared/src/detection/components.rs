@@ -1,0 +1,401 @@
+//! Connected components of the foreground in one pass over the rows, in fixed
+//! memory whatever the image holds.
+//!
+//! Each row's pixels are labelled from their eight-connected neighbours in the
+//! row above and to the left; labels that meet are merged (union-find) and
+//! their sums with them. When a row has been labelled, every component that
+//! reaches no pixel of it can grow no further: its sums are handed on and its
+//! slot is free for a later component. So memory depends on how many
+//! components are open across one row, never on how many the image holds;
+//! more than [`MAX_OPEN_COMPONENTS`] open at once refuses the frame.
+//!
+//! The sums are exact integers: pixel count and coordinate moments for the
+//! shape, and moments weighted by each pixel's contrast above the local
+//! background for the sub-pixel centroid.
+
+use super::image::MAX_WIDTH_PX;
+
+/// Components open across one row at most (a slot is 88 bytes: 8.25 KiB).
+/// Real marks are a few across a row; a 256-pixel row can hold 128
+/// separate components (every other pixel), which only noise or a grating
+/// makes, and which refuses the frame.
+pub const MAX_OPEN_COMPONENTS: usize = 96;
+
+/// No label (background).
+const NONE: u16 = u16::MAX;
+
+/// The exact sums of one component.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ComponentSums {
+    /// Pixels.
+    pub area: u32,
+    /// Sum of x, of y, of x^2, of y^2 and of x y over the pixels.
+    pub sx: u64,
+    /// Sum of y.
+    pub sy: u64,
+    /// Sum of x^2.
+    pub sxx: u64,
+    /// Sum of y^2.
+    pub syy: u64,
+    /// Sum of x y.
+    pub sxy: u64,
+    /// Sum of the contrast weights.
+    pub sw: u64,
+    /// Sum of weight times x.
+    pub swx: u64,
+    /// Sum of weight times y.
+    pub swy: u64,
+    /// Brightest contrast.
+    pub peak: u8,
+    /// Bounding box: first and last column, first and last row.
+    pub x_min: u16,
+    /// Last column.
+    pub x_max: u16,
+    /// First row.
+    pub y_min: u16,
+    /// Last row.
+    pub y_max: u16,
+}
+
+impl ComponentSums {
+    fn pixel(x: u16, y: u16, weight: u8) -> Self {
+        let (xl, yl, w) = (u64::from(x), u64::from(y), u64::from(weight));
+        Self {
+            area: 1,
+            sx: xl,
+            sy: yl,
+            sxx: xl * xl,
+            syy: yl * yl,
+            sxy: xl * yl,
+            sw: w,
+            swx: w * xl,
+            swy: w * yl,
+            peak: weight,
+            x_min: x,
+            x_max: x,
+            y_min: y,
+            y_max: y,
+        }
+    }
+
+    fn absorb(&mut self, other: &Self) {
+        self.area += other.area;
+        self.sx += other.sx;
+        self.sy += other.sy;
+        self.sxx += other.sxx;
+        self.syy += other.syy;
+        self.sxy += other.sxy;
+        self.sw += other.sw;
+        self.swx += other.swx;
+        self.swy += other.swy;
+        self.peak = self.peak.max(other.peak);
+        self.x_min = self.x_min.min(other.x_min);
+        self.x_max = self.x_max.max(other.x_max);
+        self.y_min = self.y_min.min(other.y_min);
+        self.y_max = self.y_max.max(other.y_max);
+    }
+}
+
+/// Why the labelling stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ComponentError {
+    /// More than [`MAX_OPEN_COMPONENTS`] components open across row `row`.
+    TooManyOpen {
+        /// The row at which the table ran out.
+        row: u16,
+    },
+}
+
+/// One slot of the label table.
+#[derive(Debug, Clone, Copy)]
+struct Slot {
+    /// Union-find parent (itself for a root).
+    parent: u16,
+    in_use: bool,
+    sums: ComponentSums,
+}
+
+const FREE: Slot = Slot {
+    parent: NONE,
+    in_use: false,
+    sums: ComponentSums {
+        area: 0,
+        sx: 0,
+        sy: 0,
+        sxx: 0,
+        syy: 0,
+        sxy: 0,
+        sw: 0,
+        swx: 0,
+        swy: 0,
+        peak: 0,
+        x_min: 0,
+        x_max: 0,
+        y_min: 0,
+        y_max: 0,
+    },
+};
+
+/// The labeller's working memory: two rows of labels and the slot table
+/// (2 KiB + 8.25 KiB).
+#[derive(Debug, Clone)]
+pub struct Labeller {
+    previous: [u16; MAX_WIDTH_PX],
+    current: [u16; MAX_WIDTH_PX],
+    slots: [Slot; MAX_OPEN_COMPONENTS],
+    width: usize,
+    row: u16,
+}
+
+impl Labeller {
+    /// A labeller for rows of `width` pixels (at most [`MAX_WIDTH_PX`]).
+    pub fn new(width: usize) -> Self {
+        Self {
+            previous: [NONE; MAX_WIDTH_PX],
+            current: [NONE; MAX_WIDTH_PX],
+            slots: [FREE; MAX_OPEN_COMPONENTS],
+            width: width.min(MAX_WIDTH_PX),
+            row: 0,
+        }
+    }
+
+    /// Labels the next row: `weight[x]` is the pixel's contrast above the
+    /// background, `None` for background. Every component closed by this row
+    /// is passed to `closed`.
+    pub fn push_row(
+        &mut self,
+        weights: &[Option<u8>],
+        mut closed: impl FnMut(&ComponentSums),
+    ) -> Result<(), ComponentError> {
+        let y = self.row;
+        let mut left = NONE;
+        for x in 0..self.width {
+            let weight = weights.get(x).copied().flatten();
+            let Some(weight) = weight else {
+                self.set_current(x, NONE);
+                left = NONE;
+                continue;
+            };
+            // Neighbours already labelled: left, and the three above.
+            let above = |dx: isize| -> u16 {
+                x.checked_add_signed(dx)
+                    .and_then(|i| self.previous.get(i).copied())
+                    .unwrap_or(NONE)
+            };
+            let neighbours = [left, above(-1), above(0), above(1)];
+            let mut root = NONE;
+            for label in neighbours {
+                if label == NONE {
+                    continue;
+                }
+                let other = self.find(label);
+                root = if root == NONE {
+                    other
+                } else {
+                    self.union(root, other)
+                };
+            }
+            if root == NONE {
+                root = self
+                    .allocate()
+                    .ok_or(ComponentError::TooManyOpen { row: y })?;
+            }
+            let pixel = ComponentSums::pixel(x as u16, y, weight);
+            if let Some(slot) = self.slots.get_mut(usize::from(root)) {
+                if slot.sums.area == 0 {
+                    slot.sums = pixel;
+                } else {
+                    slot.sums.absorb(&pixel);
+                }
+            }
+            self.set_current(x, root);
+            left = root;
+        }
+        self.close_row(&mut closed);
+        self.row = self.row.saturating_add(1);
+        Ok(())
+    }
+
+    /// Hands on every component still open (the image has no more rows).
+    pub fn finish(&mut self, mut closed: impl FnMut(&ComponentSums)) {
+        self.previous = [NONE; MAX_WIDTH_PX];
+        self.current = [NONE; MAX_WIDTH_PX];
+        self.close_row(&mut closed);
+    }
+
+    fn set_current(&mut self, x: usize, label: u16) {
+        if let Some(cell) = self.current.get_mut(x) {
+            *cell = label;
+        }
+    }
+
+    fn parent(&self, label: u16) -> u16 {
+        self.slots
+            .get(usize::from(label))
+            .map_or(label, |slot| slot.parent)
+    }
+
+    fn find(&mut self, label: u16) -> u16 {
+        let mut root = label;
+        // A chain is at most as long as the table.
+        for _ in 0..MAX_OPEN_COMPONENTS {
+            let parent = self.parent(root);
+            if parent == root || parent == NONE {
+                break;
+            }
+            root = parent;
+        }
+        // Path compression.
+        let mut node = label;
+        for _ in 0..MAX_OPEN_COMPONENTS {
+            let parent = self.parent(node);
+            if parent == root || parent == NONE {
+                break;
+            }
+            if let Some(slot) = self.slots.get_mut(usize::from(node)) {
+                slot.parent = root;
+            }
+            node = parent;
+        }
+        root
+    }
+
+    /// Merges two roots; the lower label survives and holds both sums.
+    fn union(&mut self, a: u16, b: u16) -> u16 {
+        if a == b {
+            return a;
+        }
+        let (keep, gone) = if a < b { (a, b) } else { (b, a) };
+        let gone_sums = self.slots.get(usize::from(gone)).map(|slot| slot.sums);
+        if let Some(sums) = gone_sums {
+            if let Some(slot) = self.slots.get_mut(usize::from(keep)) {
+                slot.sums.absorb(&sums);
+            }
+        }
+        if let Some(slot) = self.slots.get_mut(usize::from(gone)) {
+            slot.parent = keep;
+            slot.sums = ComponentSums::default();
+        }
+        keep
+    }
+
+    fn allocate(&mut self) -> Option<u16> {
+        let (index, slot) = self
+            .slots
+            .iter_mut()
+            .enumerate()
+            .find(|(_, slot)| !slot.in_use)?;
+        *slot = Slot {
+            parent: index as u16,
+            in_use: true,
+            sums: ComponentSums::default(),
+        };
+        Some(index as u16)
+    }
+
+    /// After a row: labels of the row resolved to their roots, components
+    /// that reach none of them handed on, and every slot no label refers to
+    /// any more freed.
+    fn close_row(&mut self, closed: &mut impl FnMut(&ComponentSums)) {
+        let mut live = [false; MAX_OPEN_COMPONENTS];
+        for x in 0..self.width {
+            let label = self.current.get(x).copied().unwrap_or(NONE);
+            if label == NONE {
+                continue;
+            }
+            let root = self.find(label);
+            if let Some(cell) = self.current.get_mut(x) {
+                *cell = root;
+            }
+            if let Some(flag) = live.get_mut(usize::from(root)) {
+                *flag = true;
+            }
+        }
+        for (index, slot) in self.slots.iter_mut().enumerate() {
+            if !slot.in_use || live.get(index).copied().unwrap_or(false) {
+                continue;
+            }
+            if usize::from(slot.parent) == index && slot.sums.area > 0 {
+                closed(&slot.sums);
+            }
+            *slot = FREE;
+        }
+        core::mem::swap(&mut self.previous, &mut self.current);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::vec::Vec;
+
+    fn label(rows: &[&str]) -> Result<Vec<ComponentSums>, ComponentError> {
+        let width = rows[0].len();
+        let mut labeller = Labeller::new(width);
+        let mut out = Vec::new();
+        for row in rows {
+            let weights: Vec<Option<u8>> = row
+                .bytes()
+                .map(|c| if c == b'#' { Some(10) } else { None })
+                .collect();
+            labeller.push_row(&weights, |c| out.push(*c))?;
+        }
+        labeller.finish(|c| out.push(*c));
+        out.sort_by_key(|c| (c.y_min, c.x_min));
+        Ok(out)
+    }
+
+    #[test]
+    fn a_u_shape_merges_into_one_component_with_exact_sums() {
+        let found = label(&[
+            "#...#..", //
+            "#...#..", //
+            "#####..", //
+            ".......", //
+            "......#", //
+        ])
+        .unwrap();
+        assert_eq!(found.len(), 2);
+        let u = &found[0];
+        assert_eq!(u.area, 9);
+        assert_eq!((u.x_min, u.x_max, u.y_min, u.y_max), (0, 4, 0, 2));
+        // x: 0,4 / 0,4 / 0..4 -> 0+4+0+4+10 = 18; y: 0*2 + 1*2 + 2*5 = 12.
+        assert_eq!((u.sx, u.sy), (18, 12));
+        assert_eq!(u.sw, 90);
+        assert_eq!(found[1].area, 1);
+    }
+
+    #[test]
+    fn diagonal_pixels_are_connected() {
+        let found = label(&["#..", ".#.", "..#"]).unwrap();
+        assert_eq!(found.len(), 1);
+        assert_eq!(found[0].area, 3);
+    }
+
+    #[test]
+    fn slots_are_recycled_so_many_components_over_the_image_fit() {
+        // 300 single-pixel components, never more than 4 open at once.
+        let mut labeller = Labeller::new(8);
+        let mut count = 0;
+        for y in 0..600 {
+            let weights: Vec<Option<u8>> = (0..8)
+                .map(|x| (y % 2 == 0 && x % 2 == 0).then_some(5))
+                .collect();
+            labeller.push_row(&weights, |_| count += 1).unwrap();
+        }
+        labeller.finish(|_| count += 1);
+        assert_eq!(count, 1200);
+    }
+
+    #[test]
+    fn too_many_open_components_is_an_error_not_a_panic() {
+        let mut labeller = Labeller::new(MAX_WIDTH_PX);
+        let weights: Vec<Option<u8>> = (0..MAX_WIDTH_PX)
+            .map(|x| (x % 2 == 0).then_some(1))
+            .collect();
+        assert_eq!(
+            labeller.push_row(&weights, |_| {}),
+            Err(ComponentError::TooManyOpen { row: 0 })
+        );
+    }
+}

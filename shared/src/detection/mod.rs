@@ -1,0 +1,252 @@
+//! Mark detection: from an 8-bit grayscale camera image to sub-pixel mark
+//! candidates, in fixed working memory, so that the same code runs on the
+//! host and on a small smart-camera MCU.
+//!
+//! The paper's method (Sections 2 and 3) stands on image points: the disc's
+//! reference mark, the part's feature points and the end effector's marks.
+//! Bright round marks on a darker scene are found in three steps:
+//! - [`background`]: the local background level and noise, tile by tile,
+//!   so that a threshold of `level + max(min_contrast, noise_factor * noise)`
+//!   copes with light that varies across the image and over time;
+//! - [`components`]: eight-connected components in one pass over the rows,
+//!   with exact integer sums, in memory bounded by the components open across
+//!   one row;
+//! - [`blob`]: the contrast-weighted centroid, the moment ellipse, and the
+//!   refusal of what does not look like a mark.
+//!
+//! Which candidate is which mark is decided elsewhere, from what the
+//! controller knows; this module only says where round bright things are.
+//!
+//! Working memory of a [`Detector`]: [`Detector::WORKING_MEMORY_BYTES`],
+//! 17,728 bytes for images up to 512 x 512 (held within 20 KiB at compile
+//! time); the image itself is borrowed, not copied.
+
+pub mod background;
+pub mod blob;
+pub mod components;
+pub mod image;
+
+use core::fmt;
+
+use heapless::Vec;
+
+pub use background::Background;
+pub use blob::{Blob, MarkShape, Refusal};
+pub use components::{ComponentError, ComponentSums, Labeller, MAX_OPEN_COMPONENTS};
+pub use image::{GrayImage, ImageError, MAX_HEIGHT_PX, MAX_WIDTH_PX};
+
+// The working memory the docs state, held at compile time.
+const _: () = assert!(Detector::WORKING_MEMORY_BYTES <= 20 * 1024);
+
+/// Most mark candidates one image yields; more are counted and dropped.
+pub const MAX_BLOBS: usize = 64;
+
+/// The detector's settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DetectorSettings {
+    /// Least contrast above the local background, grey levels.
+    pub min_contrast: u8,
+    /// The threshold's margin in background deviations.
+    pub noise_factor: f32,
+    /// What a mark may look like.
+    pub shape: MarkShape,
+    /// Contrast a pixel around a mark must exceed to weigh in its centre,
+    /// grey levels: above the background's texture and noise, far below
+    /// the threshold, so that the edge pixels a mark barely covers count.
+    pub window_floor: u8,
+}
+
+impl Default for DetectorSettings {
+    fn default() -> Self {
+        Self {
+            min_contrast: 24,
+            noise_factor: 4.0,
+            shape: MarkShape::default(),
+            window_floor: 6,
+        }
+    }
+}
+
+/// What one detection found and refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct DetectionReport {
+    /// Components above the threshold.
+    pub components: u32,
+    /// Accepted as mark candidates.
+    pub accepted: u32,
+    /// Refused: too small.
+    pub too_small: u32,
+    /// Refused: too large.
+    pub too_large: u32,
+    /// Refused: elongated.
+    pub elongated: u32,
+    /// Refused: not filling its ellipse.
+    pub ragged: u32,
+    /// Refused: touching the border.
+    pub at_border: u32,
+    /// Accepted but beyond [`MAX_BLOBS`]: dropped.
+    pub overflow: u32,
+}
+
+/// Why an image gave no candidates at all.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DetectionError {
+    /// The image itself is unusable.
+    Image(ImageError),
+    /// Too many components at once (hundreds of blobs in one band of rows):
+    /// the frame is refused rather than half read.
+    TooManyComponents {
+        /// The row at which the component table ran out.
+        row: u16,
+    },
+}
+
+impl fmt::Display for DetectionError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Image(error) => write!(f, "{error}"),
+            Self::TooManyComponents { row } => write!(
+                f,
+                "more than {MAX_OPEN_COMPONENTS} bright components open across row {row}: frame refused"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for DetectionError {}
+
+impl From<ImageError> for DetectionError {
+    fn from(error: ImageError) -> Self {
+        Self::Image(error)
+    }
+}
+
+/// The detector and its working memory. Large (see
+/// [`Detector::WORKING_MEMORY_BYTES`]): keep one in a static or on the heap of
+/// a host, not on a small task's stack.
+#[derive(Debug, Clone)]
+pub struct Detector {
+    settings: DetectorSettings,
+    level: [f32; MAX_WIDTH_PX],
+    noise: [f32; MAX_WIDTH_PX],
+    weights: [Option<u8>; MAX_WIDTH_PX],
+}
+
+impl Detector {
+    /// Bytes of working memory besides the image: the detector itself plus,
+    /// during [`Detector::detect`], a [`Background`] and a [`Labeller`] on
+    /// the stack.
+    pub const WORKING_MEMORY_BYTES: usize = core::mem::size_of::<Self>()
+        + core::mem::size_of::<Background>()
+        + core::mem::size_of::<Labeller>();
+
+    /// A detector with `settings`.
+    pub fn new(settings: DetectorSettings) -> Self {
+        Self {
+            settings,
+            level: [0.0; MAX_WIDTH_PX],
+            noise: [0.0; MAX_WIDTH_PX],
+            weights: [None; MAX_WIDTH_PX],
+        }
+    }
+
+    /// The settings in use.
+    pub fn settings(&self) -> &DetectorSettings {
+        &self.settings
+    }
+
+    /// The mark candidates of `image` into `out` (cleared first), and what
+    /// was found and refused. A black, saturated or featureless image gives
+    /// no candidates and no error.
+    pub fn detect(
+        &mut self,
+        image: &GrayImage<'_>,
+        out: &mut Vec<Blob, MAX_BLOBS>,
+    ) -> Result<DetectionReport, DetectionError> {
+        out.clear();
+        let mut report = DetectionReport::default();
+        let (width, height) = (image.width(), image.height());
+        let background = Background::measure(image);
+        let mut labeller = Labeller::new(width);
+        let shape = self.settings.shape;
+        let floor = f32::from(self.settings.window_floor);
+        let mut take = |sums: &ComponentSums| {
+            report.components += 1;
+            match Blob::from_sums(sums, width, height, &shape) {
+                Ok(mut blob) => {
+                    if let Some((x, y)) = window_centre(image, &background, sums, floor) {
+                        blob.x_px = x;
+                        blob.y_px = y;
+                    }
+                    if out.push(blob).is_ok() {
+                        report.accepted += 1;
+                    } else {
+                        report.overflow += 1;
+                    }
+                }
+                Err(Refusal::TooSmall) => report.too_small += 1,
+                Err(Refusal::TooLarge) => report.too_large += 1,
+                Err(Refusal::Elongated) => report.elongated += 1,
+                Err(Refusal::Ragged) => report.ragged += 1,
+                Err(Refusal::AtBorder) => report.at_border += 1,
+            }
+        };
+        let min_contrast = f32::from(self.settings.min_contrast);
+        for y in 0..height {
+            background.row(y, width, &mut self.level, &mut self.noise);
+            let row = image.row(y);
+            for (x, weight) in self.weights.iter_mut().enumerate().take(width) {
+                let pixel = row.get(x).copied().map_or(0.0, f32::from);
+                let level = self.level.get(x).copied().unwrap_or(255.0);
+                let noise = self.noise.get(x).copied().unwrap_or(0.0);
+                let margin = min_contrast.max(self.settings.noise_factor * noise);
+                let contrast = pixel - level;
+                *weight = (contrast > margin).then(|| contrast.clamp(1.0, 255.0) as u8);
+            }
+            labeller
+                .push_row(self.weights.get(..width).unwrap_or(&[]), &mut take)
+                .map_err(|ComponentError::TooManyOpen { row }| {
+                    DetectionError::TooManyComponents { row }
+                })?;
+        }
+        labeller.finish(&mut take);
+        Ok(report)
+    }
+}
+
+/// The centre of a mark from every pixel of its bounding box grown by one,
+/// weighted by its contrast above the background less `floor_grey`. The
+/// component holds only the pixels above the threshold; the edge pixels that
+/// the mark covers by less than the threshold's share are missing from it,
+/// on whichever side the mark's sub-pixel position puts more of them, which
+/// biases its centroid by several hundredths of a pixel. Here they count;
+/// the floor keeps the background's texture and noise around the mark from
+/// pulling the centre towards the window's middle.
+fn window_centre(
+    image: &GrayImage<'_>,
+    background: &Background,
+    sums: &ComponentSums,
+    floor_grey: f32,
+) -> Option<(f32, f32)> {
+    let x0 = usize::from(sums.x_min).saturating_sub(1);
+    let y0 = usize::from(sums.y_min).saturating_sub(1);
+    let x1 = (usize::from(sums.x_max) + 1).min(image.width().saturating_sub(1));
+    let y1 = (usize::from(sums.y_max) + 1).min(image.height().saturating_sub(1));
+    let (mut sw, mut swx, mut swy) = (0.0f32, 0.0f32, 0.0f32);
+    let floor = floor_grey;
+    for y in y0..=y1 {
+        let row = image.row(y);
+        for x in x0..=x1 {
+            let pixel = row.get(x).copied().map_or(0.0, f32::from);
+            let weight = (pixel - background.level_at(x, y) - floor).max(0.0);
+            // Coordinates relative to the window keep the f32 sums exact enough.
+            sw += weight;
+            swx += weight * (x - x0) as f32;
+            swy += weight * (y - y0) as f32;
+        }
+    }
+    (sw > 0.0).then(|| (x0 as f32 + swx / sw, y0 as f32 + swy / sw))
+}
+
+#[cfg(test)]
+mod tests;
