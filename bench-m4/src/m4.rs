@@ -73,6 +73,10 @@ fn run() -> Option<()> {
         pick_tick(&timer, &model, &q);
         return Some(());
     }
+    // `BENCH_M4_ONLY=detect`: only the mark detection of one frame.
+    if option_env!("BENCH_M4_ONLY") == Some("detect") {
+        return detect_frame(&timer);
+    }
     // `BENCH_M4_ONLY=interlock`: only the drive interlock's period.
     if option_env!("BENCH_M4_ONLY") == Some("interlock") {
         interlock_period(&timer);
@@ -200,6 +204,7 @@ fn run() -> Option<()> {
     }
 
     pick_tick(&timer, &model, &q);
+    detect_frame(&timer)?;
 
     let x = 0.7_f32;
     let math = [
@@ -327,6 +332,55 @@ fn pick_tick(timer: &timer::DualTimer, model: &Puma560<f32>, q: &Joints<f32>) {
         "  forward kinematics (f32)        {:>6}",
         timer.measure(CALLS, || model.forward_kinematics(black_box(q)))
     );
+}
+
+/// Mark detection of one 256 x 256 frame (`shared::detection`): light
+/// falling across the frame, a faint texture and twelve bright discs of
+/// radius 3 to 6 px, as in the host's criterion bench. Five calls: a frame
+/// is millions of instructions. `None` (the bench fails) over the budget of
+/// 5 million instructions a frame.
+fn detect_frame(timer: &timer::DualTimer) -> Option<()> {
+    const BUDGET: u64 = 5_000_000;
+    use shared::detection::{Detector, DetectorSettings, GrayImage, MAX_BLOBS};
+    const SIDE: usize = 256;
+    let mut pixels = [0u8; SIDE * SIDE];
+    for (i, pixel) in pixels.iter_mut().enumerate() {
+        let (x, y) = ((i % SIDE) as i32, (i / SIDE) as i32);
+        // Ramp 60..100, a +-3 texture from a cheap hash, discs of +120.
+        let texture = ((x * 7 + y * 13) ^ (x * y)) % 7 - 3;
+        let mut value = 60 + 40 * (x + y) / (2 * SIDE as i32) + texture;
+        for k in 0..12i32 {
+            let (cx, cy, r) = (30 + 60 * (k % 4), 40 + 80 * (k / 4), 3 + k % 4);
+            if (x - cx) * (x - cx) + (y - cy) * (y - cy) <= r * r {
+                value += 120;
+            }
+        }
+        *pixel = value.clamp(0, 255) as u8;
+    }
+    let Ok(image) = GrayImage::packed(SIDE, SIDE, &pixels) else {
+        hprintln!("  detect: frame refused");
+        return None;
+    };
+    let mut detector = Detector::new(DetectorSettings::default());
+    let mut out = heapless::Vec::<_, MAX_BLOBS>::new();
+    let found = detector.detect(&image, &mut out).map(|r| r.accepted);
+    let cost = timer.measure(5, || {
+        black_box(detector.detect(black_box(&image), &mut out).is_ok())
+    });
+    hprintln!(
+        "  mark detection, 256 x 256 frame {:>8}   ({:?} marks; {} B working memory)",
+        cost,
+        found,
+        Detector::WORKING_MEMORY_BYTES
+    );
+    if cost > BUDGET {
+        hprintln!(
+            "  mark detection over its budget of {} instructions",
+            BUDGET
+        );
+        return None;
+    }
+    Some(())
 }
 
 /// What the drive interlock adds to every control period: the encoder

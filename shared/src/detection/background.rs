@@ -51,13 +51,23 @@ impl Background {
         background
     }
 
-    /// Level and noise at every pixel of row `y`, interpolated between tile
-    /// centres (clamped to the outer centres at the image's edges): first
-    /// down the tile columns for this row, then along the row.
-    pub fn row(&self, y: usize, width: usize, level: &mut [f32], noise: &mut [f32]) {
+    /// Background level (rounded) and threshold (floored: a pixel is
+    /// foreground when brighter than it) at every pixel of row `y`, for the
+    /// threshold `level + max(min_contrast, noise_factor * noise)`: both
+    /// taken at the tile centres, interpolated down the tile columns for this
+    /// row, then along the row in fixed point (one addition a pixel).
+    pub fn thresholds(
+        &self,
+        y: usize,
+        width: usize,
+        min_contrast: f32,
+        noise_factor: f32,
+        level: &mut [u8],
+        threshold: &mut [u8],
+    ) {
         let (ty0, ty1, fy) = span(y, self.tiles_y);
         let mut column_level = [0.0f32; MAX_TILES_X];
-        let mut column_noise = [0.0f32; MAX_TILES_X];
+        let mut column_threshold = [0.0f32; MAX_TILES_X];
         for tx in 0..self.tiles_x {
             let at = |values: &[u8; MAX_TILES], ty: usize| {
                 values
@@ -68,13 +78,21 @@ impl Background {
             let lerp = |values: &[u8; MAX_TILES]| {
                 at(values, ty0) + fy * (at(values, ty1) - at(values, ty0))
             };
-            if let (Some(l), Some(n)) = (column_level.get_mut(tx), column_noise.get_mut(tx)) {
-                *l = lerp(&self.level);
-                *n = lerp(&self.noise);
+            let (l, n) = (lerp(&self.level), lerp(&self.noise));
+            let scaled = noise_factor * n;
+            let margin = if scaled > min_contrast {
+                scaled
+            } else {
+                min_contrast
+            };
+            if let (Some(cl), Some(ct)) = (column_level.get_mut(tx), column_threshold.get_mut(tx)) {
+                // Rounded level, floored threshold, both as a 24.8 fixed point.
+                *cl = l + 0.5;
+                *ct = l + margin;
             }
         }
         fill_row(&column_level, self.tiles_x, width, level);
-        fill_row(&column_noise, self.tiles_x, width, noise);
+        fill_row(&column_threshold, self.tiles_x, width, threshold);
     }
 
     /// Level at one pixel, interpolated as in [`Background::row`].
@@ -108,34 +126,39 @@ impl Background {
 }
 
 /// Linear interpolation along a row between the values at the tile centres
-/// (pixel `TILE_PX / 2 - 0.5` of each tile), constant beyond the outer ones:
-/// one addition a pixel.
-fn fill_row(centres: &[f32; MAX_TILES_X], tiles: usize, width: usize, out: &mut [f32]) {
-    let half = TILE_PX as f32 / 2.0 - 0.5;
-    let first = centres.first().copied().unwrap_or(0.0);
+/// (pixel `TILE_PX / 2 - 0.5` of each tile), constant beyond the outer ones,
+/// in 24.8 fixed point: one addition a pixel, then the integer part,
+/// clamped to 0..=255.
+fn fill_row(centres: &[f32; MAX_TILES_X], tiles: usize, width: usize, out: &mut [u8]) {
+    const ONE: f32 = 256.0;
+    let to_grey = |fixed: i32| (fixed >> 8).clamp(0, 255) as u8;
+    let fixed = |value: f32| (value * ONE) as i32;
+    let first = centres.first().copied().map_or(0, fixed);
     let last = centres
         .get(tiles.saturating_sub(1))
         .copied()
-        .unwrap_or(first);
-    for (x, value) in out.iter_mut().enumerate().take(width) {
-        // Before the first centre and after the last: constant.
-        if (x as f32) <= half {
-            *value = first;
-        } else {
-            *value = last;
-        }
-    }
-    for tile in 0..tiles.saturating_sub(1) {
-        let a = centres.get(tile).copied().unwrap_or(0.0);
-        let b = centres.get(tile + 1).copied().unwrap_or(a);
-        let step = (b - a) / TILE_PX as f32;
-        // Pixels strictly after centre `tile`, up to and including centre `tile + 1`.
-        let start = tile * TILE_PX + TILE_PX / 2;
-        let mut value = a + step * (start as f32 - (tile * TILE_PX) as f32 - half);
-        for cell in out.iter_mut().take(width).skip(start).take(TILE_PX) {
-            *cell = value;
+        .map_or(first, fixed);
+    let out = out.get_mut(..width).unwrap_or(&mut []);
+    // Up to the first centre (pixel TILE_PX / 2 - 1 is the last before it).
+    let (head, rest) = out.split_at_mut((TILE_PX / 2).min(width));
+    head.fill(to_grey(first));
+    let mut cells = rest.iter_mut();
+    for pair in centres.get(..tiles).unwrap_or(&[]).windows(2) {
+        let (a, b) = match pair {
+            [a, b] => (fixed(*a), fixed(*b)),
+            _ => continue,
+        };
+        // Pixels after centre `a` up to centre `b`: the first is half a
+        // pixel past `a`.
+        let step = (b - a) / TILE_PX as i32;
+        let mut value = a + step / 2;
+        for cell in cells.by_ref().take(TILE_PX) {
+            *cell = to_grey(value);
             value += step;
         }
+    }
+    for cell in cells {
+        *cell = to_grey(last);
     }
 }
 
@@ -154,49 +177,54 @@ fn span(coordinate: usize, tiles: usize) -> (usize, usize, f32) {
     (first, first + 1, position - first as f32)
 }
 
-/// Background level and noise of one tile: the mean and deviation of the
-/// pixels not brighter than the tile's mean plus one deviation.
+/// Background level and noise of one tile, from a quarter of its pixels
+/// (every other row, every other pixel, staggered from row to row so that
+/// no column pattern aliases): the mean and deviation of those not
+/// brighter than the tile's mean plus one deviation, then of those within
+/// three of that subset's deviations of its mean. The first cut drops the
+/// marks; the second takes back the brighter half of a lighting ramp or a
+/// texture that the first dropped with them.
 fn tile_statistics(image: &GrayImage<'_>, tx: usize, ty: usize) -> (u8, u8) {
     let x0 = tx * TILE_PX;
     let x1 = (x0 + TILE_PX).min(image.width());
     let y0 = ty * TILE_PX;
     let y1 = (y0 + TILE_PX).min(image.height());
-    let mut all = Moments::default();
-    for y in y0..y1 {
-        for &p in image.row(y).get(x0..x1).unwrap_or(&[]) {
-            all.add(u32::from(p));
-        }
-    }
-    let (mean, deviation) = all.mean_and_deviation();
-    let ceiling = mean + deviation;
-    let mut below = Moments::default();
-    for y in y0..y1 {
-        for &p in image.row(y).get(x0..x1).unwrap_or(&[]) {
-            if f32::from(p) <= ceiling {
-                below.add(u32::from(p));
+    let moments_below = |ceiling: f32| {
+        let ceiling = if ceiling >= 255.0 { 255 } else { ceiling as u8 };
+        let mut moments = Moments::default();
+        for (k, y) in (y0..y1).step_by(2).enumerate() {
+            let start = (x0 + k % 2).min(x1);
+            for &p in image.row(y).get(start..x1).unwrap_or(&[]).iter().step_by(2) {
+                if p <= ceiling {
+                    moments.add(u32::from(p));
+                }
             }
         }
-    }
-    let (level, noise) = below.mean_and_deviation();
+        moments.mean_and_deviation()
+    };
+    let (mean, deviation) = moments_below(255.0);
+    let (mean, deviation) = moments_below(mean + deviation);
+    let (level, noise) = moments_below(mean + 3.0 * deviation + 1.0);
     (
         libm::roundf(level).clamp(0.0, 255.0) as u8,
         libm::roundf(noise).clamp(0.0, 255.0) as u8,
     )
 }
 
-/// Count, sum and sum of squares of small integers, exact.
+/// Count, sum and sum of squares of grey levels, exact (a tile's 256
+/// squares of 255 fit a `u32` 64 times over).
 #[derive(Debug, Default)]
 struct Moments {
     count: u32,
-    sum: u64,
-    squares: u64,
+    sum: u32,
+    squares: u32,
 }
 
 impl Moments {
     fn add(&mut self, value: u32) {
         self.count += 1;
-        self.sum += u64::from(value);
-        self.squares += u64::from(value * value);
+        self.sum += value;
+        self.squares += value * value;
     }
 
     fn mean_and_deviation(&self) -> (f32, f32) {
@@ -229,18 +257,45 @@ mod tests {
         }
         let image = GrayImage::packed(64, 64, &pixels).unwrap();
         let background = Background::measure(&image);
-        let mut level = [0.0f32; 64];
-        let mut noise = [0.0f32; 64];
-        background.row(32, 64, &mut level, &mut noise);
+        let mut level = [0u8; 64];
+        let mut threshold = [0u8; 64];
+        background.thresholds(32, 64, 24.0, 4.0, &mut level, &mut threshold);
         // Inside the outer tile centres the interpolation follows the ramp to
-        // within a grey level, even across the mark.
+        // within two grey levels, even across the mark, and the threshold
+        // sits the least contrast above it (the ramp's noise is small).
         for x in 8..56 {
+            let expected = 40.0 + x as f32;
             assert!(
-                (level[x] - (40.0 + x as f32)).abs() < 1.5,
+                (f32::from(level[x]) - expected).abs() < 2.0,
                 "x {x}: {}",
                 level[x]
             );
-            assert!(noise[x] < 6.0, "x {x}: noise {}", noise[x]);
+            let margin = f32::from(threshold[x]) - expected;
+            assert!((23.0..30.0).contains(&margin), "x {x}: {}", threshold[x]);
+        }
+    }
+
+    #[test]
+    fn rows_agree_with_the_pointwise_interpolation() {
+        // 100 x 70: partial tiles at both edges.
+        let mut state = 5u64;
+        let pixels: std::vec::Vec<u8> = (0..100 * 70)
+            .map(|_| (crate::test_rng::splitmix(&mut state) * 255.0) as u8)
+            .collect();
+        let image = GrayImage::packed(100, 70, &pixels).unwrap();
+        let background = Background::measure(&image);
+        let mut level = [0u8; 100];
+        let mut threshold = [0u8; 100];
+        for y in 0..70 {
+            background.thresholds(y, 100, 24.0, 4.0, &mut level, &mut threshold);
+            for (x, &grey) in level.iter().enumerate() {
+                // Rounded in fixed point: within a grey level.
+                let exact = background.level_at(x, y);
+                assert!(
+                    (f32::from(grey) - exact).abs() <= 1.0,
+                    "({x}, {y}): {grey} vs {exact}"
+                );
+            }
         }
     }
 

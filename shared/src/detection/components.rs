@@ -140,9 +140,15 @@ const FREE: Slot = Slot {
 /// (2 KiB + 8.25 KiB).
 #[derive(Debug, Clone)]
 pub struct Labeller {
+    /// Roots of the row above (none outside `previous_span`).
     previous: [u16; MAX_WIDTH_PX],
+    /// The row being labelled (none outside the pixels labelled so far).
     current: [u16; MAX_WIDTH_PX],
+    /// First and last labelled column of `previous` (first > last: none).
+    previous_span: (usize, usize),
     slots: [Slot; MAX_OPEN_COMPONENTS],
+    /// Slots in use.
+    open: usize,
     width: usize,
     row: u16,
 }
@@ -153,29 +159,32 @@ impl Labeller {
         Self {
             previous: [NONE; MAX_WIDTH_PX],
             current: [NONE; MAX_WIDTH_PX],
+            previous_span: (usize::MAX, 0),
             slots: [FREE; MAX_OPEN_COMPONENTS],
+            open: 0,
             width: width.min(MAX_WIDTH_PX),
             row: 0,
         }
     }
 
-    /// Labels the next row: `weight[x]` is the pixel's contrast above the
-    /// background, `None` for background. Every component closed by this row
-    /// is passed to `closed`.
+    /// Labels the next row: `weights[x]` is the pixel's contrast above the
+    /// background, 0 for background. Every component closed by this row is
+    /// passed to `closed`.
     pub fn push_row(
         &mut self,
-        weights: &[Option<u8>],
+        weights: &[u8],
         mut closed: impl FnMut(&ComponentSums),
     ) -> Result<(), ComponentError> {
         let y = self.row;
         let mut left = NONE;
-        for x in 0..self.width {
-            let weight = weights.get(x).copied().flatten();
-            let Some(weight) = weight else {
-                self.set_current(x, NONE);
+        let (mut first, mut last) = (usize::MAX, 0);
+        for (x, &weight) in weights.iter().enumerate().take(self.width) {
+            if weight == 0 {
                 left = NONE;
                 continue;
-            };
+            }
+            first = first.min(x);
+            last = x;
             // Neighbours already labelled: left, and the three above.
             let above = |dx: isize| -> u16 {
                 x.checked_add_signed(dx)
@@ -208,25 +217,19 @@ impl Labeller {
                     slot.sums.absorb(&pixel);
                 }
             }
-            self.set_current(x, root);
+            if let Some(cell) = self.current.get_mut(x) {
+                *cell = root;
+            }
             left = root;
         }
-        self.close_row(&mut closed);
+        self.close_row((first, last), &mut closed);
         self.row = self.row.saturating_add(1);
         Ok(())
     }
 
     /// Hands on every component still open (the image has no more rows).
     pub fn finish(&mut self, mut closed: impl FnMut(&ComponentSums)) {
-        self.previous = [NONE; MAX_WIDTH_PX];
-        self.current = [NONE; MAX_WIDTH_PX];
-        self.close_row(&mut closed);
-    }
-
-    fn set_current(&mut self, x: usize, label: u16) {
-        if let Some(cell) = self.current.get_mut(x) {
-            *cell = label;
-        }
+        self.close_row((usize::MAX, 0), &mut closed);
     }
 
     fn parent(&self, label: u16) -> u16 {
@@ -290,15 +293,18 @@ impl Labeller {
             in_use: true,
             sums: ComponentSums::default(),
         };
+        self.open += 1;
         Some(index as u16)
     }
 
-    /// After a row: labels of the row resolved to their roots, components
-    /// that reach none of them handed on, and every slot no label refers to
-    /// any more freed.
-    fn close_row(&mut self, closed: &mut impl FnMut(&ComponentSums)) {
+    /// After a row whose labelled pixels lie in `span` (first, last): their
+    /// labels resolved to their roots; components that reach none of them
+    /// handed on; every slot no label refers to any more freed; the row
+    /// kept as the next one's row above, and the scratch row cleared.
+    fn close_row(&mut self, span: (usize, usize), closed: &mut impl FnMut(&ComponentSums)) {
         let mut live = [false; MAX_OPEN_COMPONENTS];
-        for x in 0..self.width {
+        let (first, last) = span;
+        for x in first..=last.min(self.width.saturating_sub(1)) {
             let label = self.current.get(x).copied().unwrap_or(NONE);
             if label == NONE {
                 continue;
@@ -311,16 +317,28 @@ impl Labeller {
                 *flag = true;
             }
         }
-        for (index, slot) in self.slots.iter_mut().enumerate() {
-            if !slot.in_use || live.get(index).copied().unwrap_or(false) {
-                continue;
+        if self.open > 0 {
+            for (index, slot) in self.slots.iter_mut().enumerate() {
+                if !slot.in_use || live.get(index).copied().unwrap_or(false) {
+                    continue;
+                }
+                if usize::from(slot.parent) == index && slot.sums.area > 0 {
+                    closed(&slot.sums);
+                }
+                *slot = FREE;
+                self.open = self.open.saturating_sub(1);
             }
-            if usize::from(slot.parent) == index && slot.sums.area > 0 {
-                closed(&slot.sums);
+        }
+        // The row above is done with: clear it where it held labels, and it
+        // becomes the next row's scratch.
+        let (old_first, old_last) = self.previous_span;
+        for x in old_first..=old_last.min(self.width.saturating_sub(1)) {
+            if let Some(cell) = self.previous.get_mut(x) {
+                *cell = NONE;
             }
-            *slot = FREE;
         }
         core::mem::swap(&mut self.previous, &mut self.current);
+        self.previous_span = span;
     }
 }
 
@@ -334,9 +352,9 @@ mod tests {
         let mut labeller = Labeller::new(width);
         let mut out = Vec::new();
         for row in rows {
-            let weights: Vec<Option<u8>> = row
+            let weights: Vec<u8> = row
                 .bytes()
-                .map(|c| if c == b'#' { Some(10) } else { None })
+                .map(|c| if c == b'#' { 10 } else { 0 })
                 .collect();
             labeller.push_row(&weights, |c| out.push(*c))?;
         }
@@ -378,8 +396,8 @@ mod tests {
         let mut labeller = Labeller::new(8);
         let mut count = 0;
         for y in 0..600 {
-            let weights: Vec<Option<u8>> = (0..8)
-                .map(|x| (y % 2 == 0 && x % 2 == 0).then_some(5))
+            let weights: Vec<u8> = (0..8)
+                .map(|x| if y % 2 == 0 && x % 2 == 0 { 5 } else { 0 })
                 .collect();
             labeller.push_row(&weights, |_| count += 1).unwrap();
         }
@@ -390,8 +408,8 @@ mod tests {
     #[test]
     fn too_many_open_components_is_an_error_not_a_panic() {
         let mut labeller = Labeller::new(MAX_WIDTH_PX);
-        let weights: Vec<Option<u8>> = (0..MAX_WIDTH_PX)
-            .map(|x| (x % 2 == 0).then_some(1))
+        let weights: Vec<u8> = (0..MAX_WIDTH_PX)
+            .map(|x| if x % 2 == 0 { 1 } else { 0 })
             .collect();
         assert_eq!(
             labeller.push_row(&weights, |_| {}),

@@ -18,7 +18,7 @@
 //! controller knows; this module only says where round bright things are.
 //!
 //! Working memory of a [`Detector`]: [`Detector::WORKING_MEMORY_BYTES`],
-//! 17,728 bytes for images up to 512 x 512 (held within 20 KiB at compile
+//! 14,144 bytes for images up to 512 x 512 (held within 16 KiB at compile
 //! time); the image itself is borrowed, not copied.
 
 pub mod background;
@@ -36,7 +36,7 @@ pub use components::{ComponentError, ComponentSums, Labeller, MAX_OPEN_COMPONENT
 pub use image::{GrayImage, ImageError, MAX_HEIGHT_PX, MAX_WIDTH_PX};
 
 // The working memory the docs state, held at compile time.
-const _: () = assert!(Detector::WORKING_MEMORY_BYTES <= 20 * 1024);
+const _: () = assert!(Detector::WORKING_MEMORY_BYTES <= 16 * 1024);
 
 /// Most mark candidates one image yields; more are counted and dropped.
 pub const MAX_BLOBS: usize = 64;
@@ -127,9 +127,9 @@ impl From<ImageError> for DetectionError {
 #[derive(Debug, Clone)]
 pub struct Detector {
     settings: DetectorSettings,
-    level: [f32; MAX_WIDTH_PX],
-    noise: [f32; MAX_WIDTH_PX],
-    weights: [Option<u8>; MAX_WIDTH_PX],
+    level: [u8; MAX_WIDTH_PX],
+    threshold: [u8; MAX_WIDTH_PX],
+    weights: [u8; MAX_WIDTH_PX],
 }
 
 impl Detector {
@@ -144,9 +144,9 @@ impl Detector {
     pub fn new(settings: DetectorSettings) -> Self {
         Self {
             settings,
-            level: [0.0; MAX_WIDTH_PX],
-            noise: [0.0; MAX_WIDTH_PX],
-            weights: [None; MAX_WIDTH_PX],
+            level: [0; MAX_WIDTH_PX],
+            threshold: [0; MAX_WIDTH_PX],
+            weights: [0; MAX_WIDTH_PX],
         }
     }
 
@@ -191,17 +191,29 @@ impl Detector {
                 Err(Refusal::AtBorder) => report.at_border += 1,
             }
         };
-        let min_contrast = f32::from(self.settings.min_contrast);
+        // At least one grey level: a weight of 0 means background.
+        let min_contrast = f32::from(self.settings.min_contrast.max(1));
+        let noise_factor = self.settings.noise_factor;
         for y in 0..height {
-            background.row(y, width, &mut self.level, &mut self.noise);
+            background.thresholds(
+                y,
+                width,
+                min_contrast,
+                noise_factor,
+                &mut self.level,
+                &mut self.threshold,
+            );
             let row = image.row(y);
-            for (x, weight) in self.weights.iter_mut().enumerate().take(width) {
-                let pixel = row.get(x).copied().map_or(0.0, f32::from);
-                let level = self.level.get(x).copied().unwrap_or(255.0);
-                let noise = self.noise.get(x).copied().unwrap_or(0.0);
-                let margin = min_contrast.max(self.settings.noise_factor * noise);
-                let contrast = pixel - level;
-                *weight = (contrast > margin).then(|| contrast.clamp(1.0, 255.0) as u8);
+            let limits = self.level.iter().zip(self.threshold.iter());
+            for (weight, (&pixel, (&level, &threshold))) in
+                self.weights.iter_mut().zip(row.iter().zip(limits))
+            {
+                // Above the threshold is at least one grey level above the level.
+                *weight = if pixel > threshold {
+                    pixel.saturating_sub(level).max(1)
+                } else {
+                    0
+                };
             }
             labeller
                 .push_row(self.weights.get(..width).unwrap_or(&[]), &mut take)
