@@ -27,6 +27,7 @@
     )
 )]
 
+pub mod angle;
 pub mod app;
 pub mod calibration;
 pub mod control;

@@ -7,7 +7,7 @@ use nalgebra::{Vector2, Vector3};
 
 use super::config::CalibrationConfig;
 use super::conic::{Conic, ConicFit};
-use super::effector::{depth_roots, wrap_angle, BaseFromDiscFit, DepthRoots};
+use super::effector::{depth_roots, BaseFromDiscFit, DepthRoots};
 use super::error::CalibrationError;
 use super::frame_store::{FrameStore, FULL_FRAME_PIXELS};
 use super::homography::{pose_from_plane, PlanePoint, PlanePose};
@@ -19,6 +19,7 @@ use super::refine::{refine, Problem};
 use super::store::ThinningStore;
 use super::uncertainty::EstimateUncertainty;
 use super::virtual_rotation::{disc_from_virtual, VirtualRotation};
+use crate::angle::wrap_pi;
 use crate::observation::{
     BaseFromDisc, CalibrationQuality, CalibrationResult, CameraEstimate, LogHeader,
     ObservationFrame, PartEstimate, PixelPoint, RigidTransform, LOG_VERSION, MAX_PART_FEATURES,
@@ -1004,7 +1005,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
                 yaw_rad: yaw,
             },
             base_from_disc: BaseFromDisc {
-                yaw_rad: wrap_angle(model.base_yaw),
+                yaw_rad: wrap_pi(model.base_yaw),
                 translation_m: [t.x, t.y, t.z],
             },
             quality: CalibrationQuality {

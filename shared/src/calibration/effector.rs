@@ -138,19 +138,10 @@ impl BaseFromDiscFit {
     }
 }
 
-/// Wraps an angle to (-pi, pi] as the contract requires for `yaw_rad`.
-pub fn wrap_angle(angle: f64) -> f64 {
-    let wrapped = libm::remainder(angle, 2.0 * core::f64::consts::PI);
-    if wrapped <= -core::f64::consts::PI {
-        wrapped + 2.0 * core::f64::consts::PI
-    } else {
-        wrapped
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::angle::wrap_pi;
 
     /// Virtual image points of two disc-frame points seen from a virtual camera at height `h`
     /// straight above the origin (depth = h - z).
@@ -208,7 +199,7 @@ mod tests {
             fit.add(p, rotation_z(yaw) * p + translation);
         }
         let (found_yaw, found_translation) = fit.solve(None).unwrap();
-        assert!((wrap_angle(found_yaw - yaw)).abs() < 1e-12);
+        assert!((wrap_pi(found_yaw - yaw)).abs() < 1e-12);
         assert!((found_translation - translation).norm() < 1e-12);
         let (_, pinned) = fit.solve(Some(-0.25)).unwrap();
         assert_eq!(pinned.z, -0.25);

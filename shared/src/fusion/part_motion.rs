@@ -10,7 +10,7 @@
 
 use nalgebra::{RealField, Vector3};
 
-use super::conveyor::wrap_pi;
+use crate::angle::{wrap_pi, WrapPi};
 
 /// The part's motion in the base frame at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -29,7 +29,7 @@ pub struct PartMotion<T: RealField + Copy> {
 /// Eq 1 for a point `p_rotating` of a part whose rotating-frame yaw is
 /// `yaw_rotating`, with `base_from_disc = (disc_yaw, disc_translation)` and the
 /// conveyor at `(theta, omega, alpha)`.
-pub fn part_motion_in_base<T: RealField + Copy>(
+pub fn part_motion_in_base<T: RealField + Copy + WrapPi>(
     disc_yaw: T,
     disc_translation_base: &Vector3<T>,
     p_rotating: &Vector3<T>,

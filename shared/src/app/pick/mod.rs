@@ -49,11 +49,11 @@ use self::worker::PickWorker;
 use super::joint_observer::JointObserver;
 use super::joint_speed::JointSpeedWindow;
 use super::tool::{tool_point_base, EFFECTOR_MARKS_FLANGE_M, TOOL_LENGTH_M};
+use crate::angle::wrap_pi;
 use crate::calibration::SelfCalibrator;
 use crate::control::{
     ControllerConfig, TaskKinematics, TaskReference, TaskSpaceController, TaskSpaceModel,
 };
-use crate::fusion::conveyor::wrap_pi;
 use crate::fusion::{ConveyorFilter, ConveyorState, LatchedSample};
 use crate::kernels::micros_to_seconds;
 use crate::planning::{
