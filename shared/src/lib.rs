@@ -43,3 +43,28 @@ pub mod safety;
 mod test_cell;
 #[cfg(test)]
 mod test_rng;
+
+#[cfg(test)]
+mod tests {
+    /// Every error type of the crate is a `core::error::Error` whose message
+    /// says what went wrong.
+    #[test]
+    fn errors_are_errors() {
+        fn message<E: core::error::Error>(error: E) -> String {
+            error.to_string()
+        }
+        let messages = [
+            message(crate::planning::PlanError::InvalidDuration),
+            message(crate::robot::RobotError::MassMatrixNotPositiveDefinite),
+            message(crate::fusion::FusionError::ZeroCountsPerRevolution),
+            message(crate::control::ControlError::NonPositivePeriod),
+            message(crate::calibration::CalibrationError::CameraBelowDisc),
+            message(crate::app::vision::VisionError::UnknownTrigger { trigger_id: 7 }),
+            message(crate::app::joint_observer::JointObserverError::NonFinite),
+            message(crate::app::pick::cell::ConfigError { field: "f_px" }),
+            message(crate::protocol::EncodeError::OutputTooSmall),
+            message(crate::protocol::DecodeError::Corrupt),
+        ];
+        assert!(messages.iter().all(|m| !m.is_empty()));
+    }
+}

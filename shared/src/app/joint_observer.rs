@@ -35,6 +35,8 @@ impl core::fmt::Display for JointObserverError {
     }
 }
 
+impl core::error::Error for JointObserverError {}
+
 /// Observer state for the six joints.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct JointObserver {

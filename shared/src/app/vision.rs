@@ -49,6 +49,8 @@ impl core::fmt::Display for VisionError {
     }
 }
 
+impl core::error::Error for VisionError {}
+
 /// The frame's points sorted by what they are.
 #[derive(Debug, Default)]
 struct Sorted {

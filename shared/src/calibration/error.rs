@@ -150,3 +150,5 @@ impl fmt::Display for CalibrationError {
         }
     }
 }
+
+impl core::error::Error for CalibrationError {}

@@ -42,3 +42,5 @@ impl fmt::Display for FusionError {
         }
     }
 }
+
+impl core::error::Error for FusionError {}

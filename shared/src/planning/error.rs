@@ -51,3 +51,5 @@ impl fmt::Display for PlanError {
         }
     }
 }
+
+impl core::error::Error for PlanError {}

@@ -43,6 +43,8 @@ impl fmt::Display for EncodeError {
     }
 }
 
+impl core::error::Error for EncodeError {}
+
 /// Why a received frame was rejected. The decoder has already resynchronised.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -80,6 +82,8 @@ impl fmt::Display for DecodeError {
         }
     }
 }
+
+impl core::error::Error for DecodeError {}
 
 /// Encodes `message` as one complete frame into `out`; returns the frame's length.
 pub fn encode_frame(message: &Message, out: &mut [u8]) -> Result<usize, EncodeError> {

@@ -21,6 +21,8 @@ impl core::fmt::Display for ConfigError {
     }
 }
 
+impl core::error::Error for ConfigError {}
+
 /// A [`CellConfig`] that passed its checks.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Cell {
