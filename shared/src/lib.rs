@@ -17,6 +17,7 @@
 //! - [`app`]: the controller application that the firmware and the in-process simulator both run.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
 #![cfg_attr(
     not(test),
     deny(

@@ -77,6 +77,7 @@ pub struct BaseFromDiscFit {
 }
 
 impl BaseFromDiscFit {
+    /// One correspondence: `p_disc` in the disc frame is `p_base` in the base frame.
     pub fn add(&mut self, p_disc: Vector3<f64>, p_base: Vector3<f64>) {
         self.sum_disc += p_disc;
         self.sum_base += p_base;
@@ -92,6 +93,7 @@ impl BaseFromDiscFit {
         self.count = self.count.saturating_add(1);
     }
 
+    /// Correspondences absorbed.
     pub fn count(&self) -> u32 {
         self.count
     }

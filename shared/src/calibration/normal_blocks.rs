@@ -96,6 +96,7 @@ impl Default for NormalBlocks {
 }
 
 impl NormalBlocks {
+    /// All blocks zero.
     pub fn zeros() -> Self {
         Self {
             arrow: ArrowMatrix::zeros(),

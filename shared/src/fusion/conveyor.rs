@@ -29,7 +29,9 @@ pub struct ConveyorState<T> {
     /// the one-sigma values are methods: the control period does not need
     /// their square roots, telemetry does).
     pub variance_theta: T,
+    /// The variance of omega (see `variance_theta`).
     pub variance_omega: T,
+    /// The variance of alpha (see `variance_theta`).
     pub variance_alpha: T,
 }
 

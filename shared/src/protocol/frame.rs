@@ -50,13 +50,24 @@ impl core::error::Error for EncodeError {}
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DecodeError {
     /// More than [`MAX_BODY_LEN`] bytes arrived without a delimiter; `discarded` bytes were dropped.
-    Oversized { discarded: usize },
+    Oversized {
+        /// Bytes dropped.
+        discarded: usize,
+    },
     /// The COBS body was malformed.
     Corrupt,
     /// Shorter than a CRC.
-    TooShort { len: usize },
+    TooShort {
+        /// The frame's length, bytes.
+        len: usize,
+    },
     /// The CRC did not match.
-    BadCrc { expected: u32, found: u32 },
+    BadCrc {
+        /// The CRC the frame carries.
+        expected: u32,
+        /// The CRC of its payload.
+        found: u32,
+    },
     /// The CRC matched but the payload was not exactly one valid message.
     BadMessage,
 }
@@ -129,6 +140,7 @@ impl Default for FrameDecoder {
 }
 
 impl FrameDecoder {
+    /// A decoder waiting for the first delimiter.
     pub const fn new() -> Self {
         Self {
             body: [0; MAX_BODY_LEN],

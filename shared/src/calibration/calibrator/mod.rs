@@ -77,6 +77,8 @@ pub type HostCalibrator = SelfCalibrator<1024, 256>;
 impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: usize>
     SelfCalibrator<FRAMES, EFFECTOR_FRAMES, PIXELS_PER_FRAME>
 {
+    /// A calibrator for the log `header` with `config`; refuses a header or configuration
+    /// no workcell fits (see [`admit`]).
     pub fn new(header: &LogHeader, config: CalibrationConfig) -> Result<Self, CalibrationError> {
         admit::check_header(header)?;
         admit::check_config(&config)?;

@@ -84,7 +84,12 @@ pub enum BoardFault {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum InterlockFault {
     /// A per-period check on one joint (0-based index).
-    Joint { joint: u8, check: InterlockCheck },
+    Joint {
+        /// The joint, 0-based.
+        joint: u8,
+        /// The check it failed.
+        check: InterlockCheck,
+    },
     /// A fault handler or a reset cause.
     Board(BoardFault),
 }
@@ -92,7 +97,9 @@ pub enum InterlockFault {
 /// The arm's limits as the interlock sees them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct InterlockLimits {
+    /// Lowest joint angles, rad.
     pub position_min_rad: [f32; JOINTS],
+    /// Highest joint angles, rad.
     pub position_max_rad: [f32; JOINTS],
     /// Symmetric speed limit (rad/s).
     pub speed_max_rad_s: [f32; JOINTS],
@@ -149,6 +156,7 @@ impl InterlockLimits {
 /// interlock acts only when the pick's supervision has failed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct InterlockSettings {
+    /// The arm's limits.
     pub limits: InterlockLimits,
     /// Allowed travel beyond each end of a joint's range (rad): encoder
     /// quantisation and the controller's overshoot at a range end.
@@ -274,6 +282,7 @@ fn joint_fault(joint: usize, check: InterlockCheck) -> InterlockFault {
 }
 
 impl<'s> DriveInterlock<'s> {
+    /// An interlock with `settings`, no fault latched.
     pub fn new(settings: &'s InterlockSettings) -> Self {
         DriveInterlock {
             settings,
@@ -288,6 +297,7 @@ impl<'s> DriveInterlock<'s> {
         self.fault
     }
 
+    /// The settings it checks against.
     pub fn settings(&self) -> &'s InterlockSettings {
         self.settings
     }
