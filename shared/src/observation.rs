@@ -1,5 +1,5 @@
 //! Records of the observation log and the calibration result, as fixed by the
-//! interface contract `spec/frames-and-log.md` (version 1).
+//! interface contract `docs/reference/frames-and-log.md` (version 1).
 //!
 //! These are plain fixed-size types: the host reads and writes them as JSON
 //! Lines (`host-sim`), the firmware fills them from camera feature frames.

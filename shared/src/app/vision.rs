@@ -1,5 +1,5 @@
 //! From a camera feature frame and the encoder values latched at its trigger to
-//! one observation of the contract (`spec/frames-and-log.md`), ready for the
+//! one observation of the contract (`docs/reference/frames-and-log.md`), ready for the
 //! self-calibrator.
 //!
 //! The frame carries labelled pixels; the latch carries the conveyor count and

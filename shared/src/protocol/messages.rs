@@ -161,9 +161,10 @@ pub enum ErrorCode {
     /// (1 pick active, 2 joint moving, 3 motion unknown, 4 gripper holds,
     /// 5 drives on), the pick phase's or joint's index in the lower 16. The
     /// running controller is kept; send the configuration again once the
-    /// pick has ended and the arm is at rest. Appended last, so every older
-    /// message keeps its encoding; a host built before it decodes this one
-    /// report as a bad message and still sees no `Ack` of its configuration.
+    /// pick has ended and the arm is at rest. It is the last code, so the
+    /// others' encodings do not depend on it; a host that does not know it
+    /// decodes this report as a bad message and still sees no `Ack` of its
+    /// configuration.
     ConfigurationRefusedActive,
 }
 
@@ -298,9 +299,9 @@ pub struct RuntimeReport {
     /// The last accepted reconfiguration's cost (building the new pick in
     /// the control loop; 0 before any). It runs in a control period of its
     /// own, with the arm at rest (`shared::safety::reconfigure`), and is not
-    /// counted in `control_worst` or as a deadline miss. Appended last: a
-    /// host built before it refuses this message as a bad frame (postcard
-    /// allows no trailing bytes), every other message is unchanged.
+    /// counted in `control_worst` or as a deadline miss. It is the last
+    /// field: a host whose report lacks it refuses this message as a bad
+    /// frame (postcard allows no trailing bytes); no other message holds it.
     pub reconfigure_cost: u32,
 }
 

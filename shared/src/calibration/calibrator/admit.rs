@@ -19,8 +19,8 @@ const MAX_FOCAL_IN_SIDES: f64 = 1e3;
 const MAX_PRINCIPAL_OFFSET_IN_SIDES: f64 = 10.0;
 /// Range of the paper's L, metres. Every length the calibration estimates scales
 /// with L; outside these bounds their squares in the refinement overflow or lose
-/// all precision (a disc of 1e250 m gave a "singular" virtual rotation rather
-/// than an error naming the header field).
+/// all precision (a disc of 1e250 m would give a "singular" virtual rotation
+/// rather than an error naming the header field).
 const REFERENCE_RADIUS_RANGE_M: (f64, f64) = (1e-3, 1e3);
 /// Largest conveyor angle accepted, radians (159,000 revolutions, 18 days at the
 /// paper's 10 s a turn). Up to it an f64 angle resolves 1.2e-10 rad; at 1e300 it
