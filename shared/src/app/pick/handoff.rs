@@ -1,8 +1,8 @@
 //! What the pick's three parts hand each other. The control loop
 //! ([`super::PickController`], high priority) never waits for the others: it
 //! latches the encoders at each camera trigger and asks for background jobs; the
-//! frame pairer ([`super::FramePairer`], on the link) turns each camera frame
-//! into an observation; the worker ([`super::PickWorker`], low priority) feeds
+//! frame pairer ([`super::pairing::FramePairer`], on the link) turns each camera frame
+//! into an observation; the worker ([`super::worker::PickWorker`], low priority) feeds
 //! the calibrator and runs the jobs. The firmware passes these through
 //! critical-section channels between its tasks; the in-process simulator calls
 //! the same three parts in the same order, so both run the same pick.

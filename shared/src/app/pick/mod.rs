@@ -20,11 +20,11 @@
 //! failure) brings the arm to a controlled stop (decelerate, then hold) and is
 //! reported with its cause.
 //!
-//! Here is the state machine: its steps ([`step`]), what entering each one
+//! Here is the state machine: its steps (`step`), what entering each one
 //! sets going and when each ends. Its parts answer it: the period's
-//! measurements and Eq 23 ([`period`]), the [`supervisor`]'s checks, where
-//! each step goes ([`route`], [`stop`]), the job in flight ([`job_slot`]), the
-//! marks' [`sightings`], the [`telemetry`], the construction ([`build`]).
+//! measurements and Eq 23 (`period`), the `supervisor`'s checks, where
+//! each step goes (`route`, `stop`), the job in flight (`job_slot`), the
+//! marks' `sightings`, the `telemetry`, the construction (`build`).
 
 pub mod brake;
 mod build;
@@ -125,7 +125,7 @@ pub struct PickCounters {
 /// The pick's control loop: fusion (Eq 1), the state machine and Eq 23, once
 /// per sensor sample. Its vision and background work are the [`pairing::FramePairer`]'s
 /// and the [`worker::PickWorker`]'s, reached through [`ControlEvent`]s and
-/// [`VisionNews`].
+/// [`handoff::VisionNews`].
 #[derive(Debug, Clone)]
 pub struct PickController {
     cell: Cell,

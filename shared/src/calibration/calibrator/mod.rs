@@ -2,10 +2,10 @@
 //! produces the paper's estimate (Sections 2 and 3) or the refined maximum-likelihood one.
 //!
 //! One stage a module:
-//! - [`admit`]: admitting the header, the configuration and each frame (the contract's rules).
-//! - [`track`]: the reference track and the centre's image (Steps 2 and 3), checked and robust.
-//! - [`paper`]: the paper's closed-form estimate (Eq 8 with two frames, Eq 15 with one pose).
-//! - [`initial`]: the initial estimate the refinement starts from (every frame, every sighting).
+//! - `admit`: admitting the header, the configuration and each frame (the contract's rules).
+//! - `track`: the reference track and the centre's image (Steps 2 and 3), checked and robust.
+//! - `paper`: the paper's closed-form estimate (Eq 8 with two frames, Eq 15 with one pose).
+//! - `initial`: the initial estimate the refinement starts from (every frame, every sighting).
 //! - here: the store and the driver, [`SelfCalibrator`] itself: it keeps what was
 //!   admitted, runs the stages and the refinement, and writes the result.
 
@@ -78,7 +78,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
     SelfCalibrator<FRAMES, EFFECTOR_FRAMES, PIXELS_PER_FRAME>
 {
     /// A calibrator for the log `header` with `config`; refuses a header or configuration
-    /// no workcell fits (see [`admit`]).
+    /// no workcell fits (see `admit`).
     pub fn new(header: &LogHeader, config: CalibrationConfig) -> Result<Self, CalibrationError> {
         admit::check_header(header)?;
         admit::check_config(&config)?;
