@@ -96,3 +96,62 @@ impl JobSlot {
         self.job = None;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planning::{ArcPoint, PlanError};
+    use crate::robot::JointVector;
+
+    fn request() -> JobRequest {
+        JobRequest::Estimate {
+            preliminary: true,
+            time_us: 0,
+            start_pose: ArcPoint {
+                radius_m: 0.5,
+                azimuth_rad: 0.0,
+                z_m: 0.4,
+                yaw_rad: 0.0,
+            },
+            q_now: JointVector::zeros(),
+        }
+    }
+
+    fn result(session: u32, job_id: u32) -> JobResult {
+        JobResult {
+            session,
+            job_id,
+            outcome: JobOutcome::Plan(Err(PlanError::NoFeasibleIntercept)),
+        }
+    }
+
+    #[test]
+    fn an_outcome_is_applied_at_its_due_time_and_not_before() {
+        let mut slot = JobSlot::new(7);
+        let ticket = slot.open(request(), 2.0);
+        assert_eq!((ticket.session, ticket.job_id), (7, 1));
+        assert!(!slot.awaits(1.0));
+        assert!(slot.awaits(2.0));
+        assert!(!slot.accept(&result(7, 1), 1.5));
+        assert!(!slot.awaits(2.0));
+        assert_eq!(slot.take_ready(1.9), None);
+        assert!(slot.take_ready(2.0).is_some());
+        assert!(slot.is_idle());
+    }
+
+    #[test]
+    fn results_of_another_session_or_job_are_ignored_and_late_ones_counted() {
+        let mut slot = JobSlot::new(7);
+        let _ = slot.open(request(), 2.0);
+        assert!(!slot.accept(&result(6, 1), 1.0));
+        assert!(!slot.accept(&result(7, 2), 1.0));
+        assert_eq!(slot.take_ready(3.0), None);
+        assert!(slot.accept(&result(7, 1), 3.0));
+        assert!(slot.take_ready(3.0).is_some());
+        let second = slot.open(request(), 5.0);
+        assert_eq!(second.job_id, 2);
+        slot.cancel();
+        assert!(!slot.accept(&result(7, 2), 4.0));
+        assert!(slot.is_idle());
+    }
+}

@@ -220,3 +220,153 @@ impl Supervisor {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model() -> Puma560<f32> {
+        Puma560::<f64>::new().cast::<f32>()
+    }
+
+    fn at(x: f32, y: f32, z: f32) -> TaskState<f32> {
+        TaskState::at_rest(Vector3::new(x, y, z), 0.0)
+    }
+
+    #[test]
+    fn joint_speed_stops_near_the_limit_and_brakes_well_over_it() {
+        let (model, settings) = (model(), PickSettings::default());
+        let limits = model.joint_limits().velocity_max;
+        assert_eq!(
+            Supervisor::joint_speed(&(limits * 0.5), &model, &settings),
+            None
+        );
+        let stop = Supervisor::joint_speed(&(limits * 1.0), &model, &settings);
+        assert_eq!(
+            stop,
+            Some(Trip {
+                cause: FaultCause::JointOverspeed,
+                brake: false
+            })
+        );
+        let brake = Supervisor::joint_speed(&(limits * 1.5), &model, &settings);
+        assert!(brake.is_some_and(|trip| trip.brake));
+        let nan = limits.map(|_| f32::NAN);
+        assert!(Supervisor::joint_speed(&nan, &model, &settings).is_some_and(|trip| trip.brake));
+    }
+
+    #[test]
+    fn reach_is_checked_only_while_following_the_part() {
+        let (model, settings) = (model(), PickSettings::default());
+        let on_the_axis = Vector3::new(0.0, 0.0, 0.3);
+        assert_eq!(
+            Supervisor::reach(Step::Locate, &on_the_axis, &model, &settings),
+            None
+        );
+        assert_eq!(
+            Supervisor::reach(Step::Track, &on_the_axis, &model, &settings),
+            Some(FaultCause::PartUnreachable)
+        );
+        let far = Vector3::new(5.0, 0.0, 0.3);
+        assert_eq!(
+            Supervisor::reach(Step::Descend, &far, &model, &settings),
+            Some(FaultCause::PartUnreachable)
+        );
+    }
+
+    #[test]
+    fn a_leaping_reference_is_refused() {
+        let settings = PickSettings::default();
+        let here = at(0.5, 0.0, 0.4);
+        assert_eq!(
+            Supervisor::reference_leap(&here, &here, 1e-3, &settings),
+            None
+        );
+        let there = at(0.5, 0.3, 0.4);
+        assert_eq!(
+            Supervisor::reference_leap(&here, &there, 1e-3, &settings),
+            Some(FaultCause::ReferenceJump)
+        );
+        let mut turned = here;
+        turned.yaw = 1.0;
+        assert_eq!(
+            Supervisor::reference_leap(&here, &turned, 1e-3, &settings),
+            Some(FaultCause::ReferenceJump)
+        );
+    }
+
+    #[test]
+    fn the_reference_speed_is_recorded_and_a_stop_is_exempt() {
+        let (model, settings) = (model(), PickSettings::default());
+        let limits = model.joint_limits().velocity_max;
+        let mut supervisor = Supervisor::new();
+        let fast = limits * 1.2;
+        assert_eq!(
+            supervisor.reference_speed(&fast, Step::Track, &model, &settings),
+            Some(FaultCause::JointOverspeed)
+        );
+        assert!((supervisor.reference_speed_ratio() - 1.2).abs() < 1e-6);
+        assert_eq!(
+            supervisor.reference_speed(&fast, Step::Stopping, &model, &settings),
+            None
+        );
+        assert_eq!(
+            supervisor.reference_speed(&fast, Step::InterceptAbandoned, &model, &settings),
+            None
+        );
+    }
+
+    #[test]
+    fn an_intercept_departs_when_the_part_or_the_conveyor_leaves_the_plan() {
+        let settings = PickSettings::default();
+        let part = at(0.6, 0.1, 0.0);
+        assert!(!Supervisor::intercept_departed(
+            &part, &part, 0.6, 0.6, &settings
+        ));
+        let moved = at(0.6, 0.3, 0.0);
+        assert!(Supervisor::intercept_departed(
+            &moved, &part, 0.6, 0.6, &settings
+        ));
+        assert!(Supervisor::intercept_departed(
+            &part, &part, -0.6, 0.6, &settings
+        ));
+    }
+
+    #[test]
+    fn nothing_goes_below_the_safe_floor_before_the_calibration_is_accepted() {
+        let below = Supervisor::height(Step::CalibrateMove(0), false, 0.1, 0.2);
+        assert_eq!(below, Some(FaultCause::BelowSafeHeight));
+        assert_eq!(
+            Supervisor::height(Step::CalibrateMove(0), false, 0.195, 0.2),
+            None
+        );
+        assert_eq!(Supervisor::height(Step::Descend, true, 0.1, 0.2), None);
+        assert_eq!(Supervisor::height(Step::Stopping, false, 0.1, 0.2), None);
+    }
+
+    #[test]
+    fn tracking_brakes_only_a_stop_that_lags_twice_the_limit() {
+        let settings = PickSettings::default();
+        let limit = settings.tracking_error_limit_m;
+        assert_eq!(
+            Supervisor::tracking(0.5 * limit, Step::Track, &settings),
+            None
+        );
+        let lagging = Supervisor::tracking(3.0 * limit, Step::Track, &settings);
+        assert!(lagging.is_some_and(|trip| !trip.brake));
+        let stop = Supervisor::tracking(3.0 * limit, Step::Stopping, &settings);
+        assert!(stop.is_some_and(|trip| trip.brake && trip.cause == FaultCause::TrackingError));
+    }
+
+    #[test]
+    fn vision_goes_stale_only_where_the_step_needs_it() {
+        let settings = PickSettings::default();
+        let long = settings.vision_stale_s + 1.0;
+        assert_eq!(
+            Supervisor::vision(Step::Track, long, &settings),
+            Some(FaultCause::VisionStale)
+        );
+        assert_eq!(Supervisor::vision(Step::Lift, long, &settings), None);
+        assert_eq!(Supervisor::vision(Step::Track, 0.0, &settings), None);
+    }
+}
