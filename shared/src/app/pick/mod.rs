@@ -128,59 +128,102 @@ pub struct PickCounters {
 /// [`handoff::VisionNews`].
 #[derive(Debug, Clone)]
 pub struct PickController {
+    // The cell and the laws that run in it.
+    /// The configuration, checked.
     cell: Cell,
+    /// The pick's tuning.
     settings: PickSettings,
+    /// The dynamic model of Eq 23 and of the supervisor's limits.
     model: Puma560<f32>,
+    /// Eq 23.
     controller: TaskSpaceController<f32>,
-    observer: JointObserver,
-    conveyor: ConveyorFilter<f32>,
-    conveyor_state: Option<ConveyorState<f32>>,
-    outbox: Deque<ControlEvent, MAX_CONTROL_EVENTS>,
-    start_time_us: Option<u64>,
-    last_time_us: u64,
-    now_s: f32,
-    ticks: u64,
-    camera_trigger: CameraTrigger,
-    last_paired_s: f32,
-    step: Step,
-    step_started_s: f32,
-    motion: Motion,
-    reference: TaskState<f32>,
-    gripper: GripperCommand,
-    fault: Option<FaultCause>,
-    estimate: Option<CellEstimate>,
-    poses: Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>,
-    jobs: JobSlot,
-    next_plan_attempt_s: f32,
-    calibration_rounds: u8,
-    estimate_serial: u32,
+    /// Eq 23's commanded joint accelerations (the observer's input).
     qdd_commanded: JointVector<f32>,
-    tool_measured: Vector3<f32>,
-    tool_yaw_measured: f32,
-    counters: PickCounters,
-    view: ViewMonitor,
-    /// The flange's position measured through the joint encoders.
-    flange_measured: Vector3<f32>,
-    /// The gripper's part-present switch at the last sample.
-    part_in_gripper: bool,
-    /// Joint speeds from the encoders alone, for the speed supervisor.
-    speed_window: JointSpeedWindow,
-    /// Engaged when the task-space stop cannot be trusted; then for good.
-    brake: Option<JointBrake>,
     /// When Eq 23's integral was last cleared (a stall).
     integral_reset_s: f32,
+    /// Engaged when the task-space stop cannot be trusted; then for good.
+    brake: Option<JointBrake>,
+
+    // The period's clock.
+    /// The first sample's time, microseconds.
+    start_time_us: Option<u64>,
+    /// The last sample's time, microseconds.
+    last_time_us: u64,
+    /// Seconds since the first sample.
+    now_s: f32,
+    /// Periods run.
+    ticks: u64,
+
+    // What the sensors say.
+    /// Joint angles and speeds from the encoders and the commanded accelerations.
+    observer: JointObserver,
+    /// Joint speeds from the encoders alone, for the speed supervisor.
+    speed_window: JointSpeedWindow,
+    /// Eq 1's theta from the conveyor encoder.
+    conveyor: ConveyorFilter<f32>,
+    /// The filter's last state.
+    conveyor_state: Option<ConveyorState<f32>>,
+    /// The flange's position measured through the joint encoders.
+    flange_measured: Vector3<f32>,
+    /// The grasp point measured through the joint encoders.
+    tool_measured: Vector3<f32>,
+    /// The flange's yaw measured through the joint encoders.
+    tool_yaw_measured: f32,
+    /// The gripper's part-present switch at the last sample.
+    part_in_gripper: bool,
+    /// When a frame was last paired with its trigger.
+    last_paired_s: f32,
+    /// The marks' sightings: where the disc is, which heights are clear.
+    sightings: Sightings,
+    /// The camera's view checked against the final calibration.
+    view: ViewMonitor,
+
+    // The state machine.
+    /// The step the pick is in.
+    step: Step,
+    /// When `step` was entered.
+    step_started_s: f32,
+    /// What the gripper is being asked to do.
+    motion: Motion,
+    /// Eq 23's reference (`Y^d`), the flange's.
+    reference: TaskState<f32>,
+    /// The gripper's command.
+    gripper: GripperCommand,
+    /// The first fault raised, if any.
+    fault: Option<FaultCause>,
+    /// Where each step goes.
+    route: Route,
+    /// The checks of every period.
+    supervisor: Supervisor,
+    /// The calibration in use, once there is one.
+    estimate: Option<CellEstimate>,
+    /// One more for every estimate.
+    estimate_serial: u32,
+    /// The poses the marks are shown at.
+    poses: Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>,
+    /// Rounds of calibration poses shown.
+    calibration_rounds: u8,
+    /// The final calibration was accepted (the pick may go down to the part).
+    calibration_accepted: bool,
+    /// The earliest time of the next intercept plan's request.
+    next_plan_attempt_s: f32,
+    /// Intercepts planned for the part so far.
+    intercept_attempts: u8,
+
+    // What goes out and comes back.
+    /// The job in flight.
+    jobs: JobSlot,
+    /// Events for the pairer and the worker, drained after every sample.
+    outbox: Deque<ControlEvent, MAX_CONTROL_EVENTS>,
+    /// The camera's trigger clock.
+    camera_trigger: CameraTrigger,
     /// The last period's command: the answer to a sample sent again because
     /// the host lost its command on a noisy link (lock step).
     last_command: Option<ActuatorCommand>,
+    /// What the controller refused or clipped.
+    counters: PickCounters,
     /// Frames the link's decoder refused, for telemetry (set by the link's owner).
     link_frames_rejected: u32,
-    supervisor: Supervisor,
-    /// Intercepts planned for the part so far.
-    intercept_attempts: u8,
-    route: Route,
-    sightings: Sightings,
-    /// The final calibration was accepted (the pick may go down to the part).
-    calibration_accepted: bool,
 }
 
 impl PickController {
