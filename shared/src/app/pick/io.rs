@@ -79,6 +79,7 @@ impl PickController {
         }
     }
 
+    /// The camera saw the marks: counted, and kept by the sightings.
     fn on_sighting(&mut self, sighting: &Sighting) {
         self.counters.effector_sightings = self.counters.effector_sightings.saturating_add(1);
         self.sightings.record(sighting);
