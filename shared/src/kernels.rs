@@ -1,15 +1,14 @@
 //! Straight-line kernels for the small vectors and matrices of the control
 //! period (frame chain, Newton-Euler recursion, conveyor filter, Eq 23).
 //!
-//! The firmware is built for size (opt-level "s": the calibrator and the
-//! planner must fit the 256 KiB flash), and at that level LLVM neither
-//! unrolls nalgebra's generic element loops nor folds its iterator adaptors:
-//! a `Matrix3 * Vector3` costs about 90 instructions on the M4F and a
-//! `Vector3 + Vector3` about 50, against 15 and 3 written out (bench-m4's
-//! profile). These are the same products written component by component, so
-//! the results are bit for bit those of the expressions they replace whenever
-//! the summation order is the same (it is, for everything here: nalgebra sums
-//! a product's terms left to right).
+//! Written out, their cost does not hang on the optimiser: where LLVM
+//! neither unrolls nalgebra's generic element loops nor folds its iterator
+//! adaptors (as at opt-level "s"), a `Matrix3 * Vector3` costs about 90
+//! instructions on the M4F and a `Vector3 + Vector3` about 50, against 15
+//! and 3 written out (bench-m4's profile). They are the same products
+//! written component by component, so the results are bit for bit those of
+//! nalgebra's expressions whenever the summation order is the same (it is,
+//! for everything here: nalgebra sums a product's terms left to right).
 
 use nalgebra::{Matrix3, Matrix6, RealField, Vector3, Vector6};
 

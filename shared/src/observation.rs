@@ -1,5 +1,5 @@
 //! Records of the observation log and the calibration result, as fixed by the
-//! interface contract `spec/frames-and-log.md` (version 1).
+//! interface contract `docs/reference/frames-and-log.md` (version 1).
 //!
 //! These are plain fixed-size types: the host reads and writes them as JSON
 //! Lines (`host-sim`), the firmware fills them from camera feature frames.
@@ -26,10 +26,15 @@ pub type Point3 = [f64; 3];
 /// Pinhole intrinsics with square pixels and no distortion (paper assumption A5).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct CameraIntrinsics {
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
+    /// Focal length, pixels.
     pub f_px: f64,
+    /// Principal point, column, pixels.
     pub cx: f64,
+    /// Principal point, row, pixels.
     pub cy: f64,
 }
 
@@ -48,7 +53,9 @@ impl CameraIntrinsics {
 /// Line 1 of a log.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LogHeader {
+    /// The log format's version ([`LOG_VERSION`]).
     pub version: u32,
+    /// The camera's known intrinsics.
     pub camera: CameraIntrinsics,
     /// The paper's L: distance from the disc centre to the reference point.
     pub reference_radius_m: f64,
@@ -60,7 +67,9 @@ pub struct LogHeader {
 /// positions from the robot's joint encoders and kinematics (taken as exact).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct EffectorSighting {
+    /// The two end-effector points' images.
     pub px: [PixelPoint; EFFECTOR_POINTS],
+    /// Their positions in the base frame, m.
     pub base_m: [Point3; EFFECTOR_POINTS],
 }
 
@@ -71,7 +80,9 @@ pub struct ObservationFrame {
     pub t_s: f64,
     /// Conveyor encoder angle theta latched at capture, unwrapped, 0 at the first frame.
     pub conveyor_angle_rad: f64,
+    /// The disc centre's image, if detected.
     pub center_px: Option<PixelPoint>,
+    /// The reference mark's image, if detected.
     pub reference_px: Option<PixelPoint>,
     /// Every feature of the part in its fixed order, or `None` unless all were detected.
     pub part_px: Option<Vec<PixelPoint, MAX_PART_FEATURES>>,
@@ -82,7 +93,9 @@ pub struct ObservationFrame {
 /// A rigid transform `p_to = rotation * p_from + translation_m`; `rotation` is a list of rows.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct RigidTransform {
+    /// Rows of the rotation matrix.
     pub rotation: [[f64; 3]; 3],
+    /// The translation, m.
     pub translation_m: Point3,
 }
 
@@ -91,6 +104,7 @@ pub struct RigidTransform {
 pub struct CameraEstimate {
     /// Height of the optical centre above the disc plane (`disc_from_camera.translation_m[2]`).
     pub height_m: f64,
+    /// `disc_from_camera` (the camera's pose in the disc frame).
     pub disc_from_camera: RigidTransform,
 }
 
@@ -132,8 +146,12 @@ pub struct CalibrationQuality {
 /// What a calibration of a log prints.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CalibrationResult {
+    /// The camera's pose.
     pub camera: CameraEstimate,
+    /// The part in the rotating frame.
     pub part: PartEstimate,
+    /// The robot base relative to the disc (Eqs 10 to 15).
     pub base_from_disc: BaseFromDisc,
+    /// How well the estimate fits its data.
     pub quality: CalibrationQuality,
 }

@@ -427,7 +427,7 @@ fn norm(v: [f64; 3]) -> f64 {
 /// An angle difference brought into (-pi, pi], so that a yaw error near the
 /// wrap reads as the small error it is.
 pub(crate) fn wrap_angle_rad(angle: f64) -> f64 {
-    shared::calibration::effector::wrap_angle(angle)
+    shared::angle::wrap_pi(angle)
 }
 
 /// The link's figures of a run, when anything went wrong on it (a noisy line,

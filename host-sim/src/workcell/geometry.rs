@@ -14,7 +14,7 @@ pub fn rotation_z(angle_rad: f64) -> Matrix3<f64> {
 
 /// `angle` wrapped to (-pi, pi], the contract's range for yaw angles (the same
 /// function the estimator uses: wrapping carries no convention to get wrong).
-pub use shared::calibration::effector::wrap_angle;
+pub use shared::angle::wrap_pi as wrap_angle;
 
 /// Absolute difference of two angles, taking the short way round (in [0, pi]).
 pub fn angle_distance(a_rad: f64, b_rad: f64) -> f64 {

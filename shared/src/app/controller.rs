@@ -35,6 +35,8 @@ pub struct ControllerApp {
 }
 
 impl ControllerApp {
+    /// The application of a board called `board_name` running `control_rate_hz` periods a
+    /// second.
     pub fn new(board_name: &str, control_rate_hz: u32) -> Self {
         Self {
             link: LinkResponder::new(board_name, control_rate_hz),
@@ -61,14 +63,17 @@ impl ControllerApp {
         })
     }
 
+    /// The link's responder.
     pub fn link(&self) -> &LinkResponder {
         &self.link
     }
 
+    /// The link's responder, to update its counters.
     pub fn link_mut(&mut self) -> &mut LinkResponder {
         &mut self.link
     }
 
+    /// The pick, once configured.
     pub fn pick(&self) -> Option<&PickController> {
         self.pick.as_ref().map(|parts| &parts.control)
     }
@@ -190,6 +195,7 @@ impl ControllerApp {
 /// A cell configuration refused: which field.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ConfigRefused {
+    /// Why it was refused.
     pub error: ConfigError,
 }
 

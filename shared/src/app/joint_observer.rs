@@ -16,7 +16,12 @@ pub enum JointObserverError {
     BadTimeStep,
     /// Joint `joint` (0-based) read `jump_rad` away from its prediction: more than
     /// the arm can move in one period (a missed count burst or a faulty encoder).
-    Implausible { joint: usize, jump_rad: f32 },
+    Implausible {
+        /// The joint, 0-based.
+        joint: usize,
+        /// How far from the prediction, rad.
+        jump_rad: f32,
+    },
     /// A reading or the commanded acceleration was not finite.
     NonFinite,
 }
@@ -34,6 +39,8 @@ impl core::fmt::Display for JointObserverError {
         }
     }
 }
+
+impl core::error::Error for JointObserverError {}
 
 /// Observer state for the six joints.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -58,10 +65,12 @@ impl JointObserver {
         }
     }
 
+    /// The estimated joint angles, rad.
     pub fn q(&self) -> JointVector<f32> {
         self.q
     }
 
+    /// The estimated joint speeds, rad/s.
     pub fn qd(&self) -> JointVector<f32> {
         self.qd
     }
@@ -74,6 +83,7 @@ impl JointObserver {
         self.initialised = false;
     }
 
+    /// Whether a reading has been absorbed since the last restart.
     pub fn is_initialised(&self) -> bool {
         self.initialised
     }

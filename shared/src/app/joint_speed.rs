@@ -26,6 +26,7 @@ impl Default for JointSpeedWindow {
 }
 
 impl JointSpeedWindow {
+    /// An empty window.
     pub fn new() -> Self {
         Self {
             q: [JointVector::zeros(); WINDOW],

@@ -59,6 +59,7 @@ impl LinkResponder {
         self.status.frames_received = self.status.frames_received.wrapping_add(1);
     }
 
+    /// The status to report.
     pub fn status(&self) -> ControllerStatus {
         self.status
     }

@@ -1,5 +1,5 @@
 //! From a camera feature frame and the encoder values latched at its trigger to
-//! one observation of the contract (`spec/frames-and-log.md`), ready for the
+//! one observation of the contract (`docs/reference/frames-and-log.md`), ready for the
 //! self-calibrator.
 //!
 //! The frame carries labelled pixels; the latch carries the conveyor count and
@@ -20,11 +20,24 @@ use crate::robot::{JointVector, Puma560};
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum VisionError {
     /// The frame's trigger id matches no pending trigger (unknown, stale or repeated).
-    UnknownTrigger { trigger_id: u32 },
+    UnknownTrigger {
+        /// The frame's trigger id.
+        trigger_id: u32,
+    },
     /// A label appears twice in one frame.
-    DuplicateLabel { trigger_id: u32, label: PointLabel },
+    DuplicateLabel {
+        /// The frame's trigger id.
+        trigger_id: u32,
+        /// The repeated label.
+        label: PointLabel,
+    },
     /// A part feature or effector mark index beyond the configured count.
-    LabelOutOfRange { trigger_id: u32, label: PointLabel },
+    LabelOutOfRange {
+        /// The frame's trigger id.
+        trigger_id: u32,
+        /// The label out of range.
+        label: PointLabel,
+    },
 }
 
 impl core::fmt::Display for VisionError {
@@ -48,6 +61,8 @@ impl core::fmt::Display for VisionError {
         }
     }
 }
+
+impl core::error::Error for VisionError {}
 
 /// The frame's points sorted by what they are.
 #[derive(Debug, Default)]

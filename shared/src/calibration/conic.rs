@@ -20,6 +20,7 @@ type Vector6 = SVector<f64, 6>;
 /// A conic `a x^2 + b xy + c y^2 + d x + e y + g = 0` in ray coordinates, scaled to unit norm.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Conic {
+    /// `[a, b, c, d, e, g]`.
     pub coefficients: [f64; 6],
 }
 
@@ -119,6 +120,7 @@ impl Default for ConicFit {
 }
 
 impl ConicFit {
+    /// No point yet.
     pub fn new() -> Self {
         Self {
             scatter: Matrix6::zeros(),
@@ -133,6 +135,7 @@ impl ConicFit {
         self.points = self.points.saturating_add(1);
     }
 
+    /// Points absorbed.
     pub fn points(&self) -> u32 {
         self.points
     }

@@ -77,6 +77,7 @@ pub struct BaseFromDiscFit {
 }
 
 impl BaseFromDiscFit {
+    /// One correspondence: `p_disc` in the disc frame is `p_base` in the base frame.
     pub fn add(&mut self, p_disc: Vector3<f64>, p_base: Vector3<f64>) {
         self.sum_disc += p_disc;
         self.sum_base += p_base;
@@ -92,6 +93,7 @@ impl BaseFromDiscFit {
         self.count = self.count.saturating_add(1);
     }
 
+    /// Correspondences absorbed.
     pub fn count(&self) -> u32 {
         self.count
     }
@@ -138,19 +140,10 @@ impl BaseFromDiscFit {
     }
 }
 
-/// Wraps an angle to (-pi, pi] as the contract requires for `yaw_rad`.
-pub fn wrap_angle(angle: f64) -> f64 {
-    let wrapped = libm::remainder(angle, 2.0 * core::f64::consts::PI);
-    if wrapped <= -core::f64::consts::PI {
-        wrapped + 2.0 * core::f64::consts::PI
-    } else {
-        wrapped
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::angle::wrap_pi;
 
     /// Virtual image points of two disc-frame points seen from a virtual camera at height `h`
     /// straight above the origin (depth = h - z).
@@ -208,7 +201,7 @@ mod tests {
             fit.add(p, rotation_z(yaw) * p + translation);
         }
         let (found_yaw, found_translation) = fit.solve(None).unwrap();
-        assert!((wrap_angle(found_yaw - yaw)).abs() < 1e-12);
+        assert!((wrap_pi(found_yaw - yaw)).abs() < 1e-12);
         assert!((found_translation - translation).norm() < 1e-12);
         let (_, pinned) = fit.solve(Some(-0.25)).unwrap();
         assert_eq!(pinned.z, -0.25);

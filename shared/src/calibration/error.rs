@@ -7,7 +7,9 @@ use core::fmt;
 /// paper's Step 2 needs (the image of a circle seen from one side is always an ellipse).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ConicKind {
+    /// Two branches: the track is not a circle's image.
     Hyperbola,
+    /// Unbounded: the track is not a circle's image.
     Parabola,
     /// `A u^2 + ... = 0` has no real point (an empty "ellipse").
     Imaginary,
@@ -17,61 +19,112 @@ pub enum ConicKind {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum CalibrationError {
     /// The log header cannot describe a workcell (`field` names the bad value).
-    InvalidHeader { field: &'static str },
+    InvalidHeader {
+        /// The field's name in the header.
+        field: &'static str,
+    },
     /// A [`super::CalibrationConfig`] value is out of range (`field` names it).
-    InvalidConfig { field: &'static str },
+    InvalidConfig {
+        /// The field's name in the configuration.
+        field: &'static str,
+    },
     /// A frame holds NaN or an infinity in `field` (frame = index of the offered frame, from 0).
-    NonFiniteValue { frame: u32, field: &'static str },
+    NonFiniteValue {
+        /// The offered frame's index, from 0.
+        frame: u32,
+        /// The field holding the value.
+        field: &'static str,
+    },
     /// A detection lies outside the image (the contract says such a point is not
     /// detected, so a log holding one is malformed).
-    OutsideImage { frame: u32, field: &'static str },
+    OutsideImage {
+        /// The offered frame's index, from 0.
+        frame: u32,
+        /// The field holding the point.
+        field: &'static str,
+    },
     /// A finite value too large to mean anything (`|value| > limit`): a conveyor
     /// angle f64 can no longer resolve, or an end-effector point kilometres away.
     ValueOutOfRange {
+        /// The offered frame's index, from 0.
         frame: u32,
+        /// The field holding the value.
         field: &'static str,
+        /// The largest magnitude allowed.
         limit: f64,
     },
     /// `part_px` holds `found` points but the header announced `expected`.
     WrongFeatureCount {
+        /// The offered frame's index, from 0.
         frame: u32,
+        /// The header's `part_feature_count`.
         expected: usize,
+        /// The points in the frame's `part_px`.
         found: usize,
     },
     /// `t_s` decreased: the contract requires non-decreasing capture times.
     TimeWentBackwards {
+        /// The offered frame's index, from 0.
         frame: u32,
+        /// Its capture time, s.
         t_s: f64,
+        /// The previous admitted frame's, s.
         previous_t_s: f64,
     },
     /// The two end-effector points coincide in the base frame, so Eq 10 has no scale (s = 0).
-    CoincidingEffectorPoints { frame: u32 },
+    CoincidingEffectorPoints {
+        /// The offered frame's index, from 0.
+        frame: u32,
+    },
     /// Not enough observations of `what` were absorbed (`needed` at least, `found` so far).
     TooFewObservations {
+        /// What was observed too rarely.
         what: &'static str,
+        /// How many are needed at least.
         needed: u32,
+        /// How many were absorbed.
         found: u32,
     },
     /// The reference points do not pin down a conic: collinear (exactly, or within the
     /// pixel noise: a camera in the disc plane) or fewer than five distinct points.
-    DegenerateConic { points: u32 },
+    DegenerateConic {
+        /// Reference points absorbed.
+        points: u32,
+    },
     /// The fitted conic is not an ellipse (Step 2).
-    NotAnEllipse { kind: ConicKind },
+    NotAnEllipse {
+        /// What the conic is instead.
+        kind: ConicKind,
+    },
     /// The reference point's image turns the wrong way as theta grows: the camera
     /// sees the disc from below (the spec requires a camera above the disc).
     CameraBelowDisc,
     /// An image point of `field` is seen level with or above the camera, so its ray
     /// never meets the disc plane below: the camera is (nearly) in the disc plane,
     /// or the end effector was shown above the camera.
-    AboveCamera { field: &'static str },
+    AboveCamera {
+        /// The field whose point it is.
+        field: &'static str,
+    },
     /// The conveyor angles absorbed so far span less than `needed_rad`: heights are unobservable.
-    InsufficientRotation { span_rad: f64, needed_rad: f64 },
+    InsufficientRotation {
+        /// The span of the conveyor angles, rad.
+        span_rad: f64,
+        /// The least span the configuration asks for, rad.
+        needed_rad: f64,
+    },
     /// No end-effector sighting has a unique root of Eq 10 with both points in front of the
     /// camera (none real, none valid, or two valid ones); `frame` = index of the first such
     /// sighting among those stored.
-    NoValidDepthRoot { frame: u32 },
+    NoValidDepthRoot {
+        /// The sighting's index among those stored.
+        frame: u32,
+    },
     /// A linear system of `stage` was singular or a result came out non-finite.
-    NumericalFailure { stage: &'static str },
+    NumericalFailure {
+        /// The stage that failed.
+        stage: &'static str,
+    },
 }
 
 impl fmt::Display for ConicKind {
@@ -150,3 +203,5 @@ impl fmt::Display for CalibrationError {
         }
     }
 }
+
+impl core::error::Error for CalibrationError {}

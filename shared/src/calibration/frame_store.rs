@@ -56,10 +56,12 @@ impl<const N: usize, const P: usize> FrameStore<N, P> {
         (N.saturating_mul(P) / self.pixels_per_frame).min(N)
     }
 
+    /// Frames stored.
     pub fn len(&self) -> usize {
         self.thetas.len()
     }
 
+    /// No frame stored.
     pub fn is_empty(&self) -> bool {
         self.thetas.is_empty()
     }
@@ -167,10 +169,12 @@ pub struct FrameView<'a> {
 }
 
 impl<'a> FrameView<'a> {
+    /// Frames in view.
     pub fn len(&self) -> usize {
         self.thetas.len()
     }
 
+    /// No frame in view.
     pub fn is_empty(&self) -> bool {
         self.thetas.is_empty()
     }

@@ -16,14 +16,18 @@ type Vector9 = SVector<f64, 9>;
 /// One correspondence: a disc-plane point (m) and its ray-coordinate image.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlanePoint {
+    /// The point on the disc plane, m.
     pub disc_xy: Vector2<f64>,
+    /// Its image in ray coordinates.
     pub ray: Vector2<f64>,
 }
 
 /// `disc_from_camera` and the camera centre in the disc frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlanePose {
+    /// The camera's orientation in the disc frame.
     pub disc_from_camera: Rotation3<f64>,
+    /// The camera's centre in the disc frame, m.
     pub camera_centre_disc: Vector3<f64>,
 }
 

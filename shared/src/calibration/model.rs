@@ -14,12 +14,15 @@ use crate::observation::MAX_PART_FEATURES;
 pub struct WorkcellModel {
     /// `p_disc = disc_from_camera * p_camera + camera_centre_disc`.
     pub disc_from_camera: Rotation3<f64>,
+    /// The camera's centre in the disc frame, m.
     pub camera_centre_disc: Vector3<f64>,
     /// Feature points in the rotating frame; `0..feature_count` are meaningful.
     pub features_rotating: [Vector3<f64>; MAX_PART_FEATURES],
+    /// How many features the part has.
     pub feature_count: usize,
     /// `p_base = Rz(base_yaw) p_disc + base_translation`.
     pub base_yaw: f64,
+    /// `base_from_disc`'s translation, m.
     pub base_translation: Vector3<f64>,
 }
 
@@ -35,7 +38,12 @@ pub enum Target {
     /// A point fixed in the disc frame with known coordinates (centre, reference point).
     KnownDisc(Vector3<f64>),
     /// Feature `index` of the part, seen at conveyor angle `theta`.
-    Feature { index: usize, theta: f64 },
+    Feature {
+        /// Which feature.
+        index: usize,
+        /// The conveyor angle, rad.
+        theta: f64,
+    },
     /// An end-effector point with known base-frame coordinates.
     Effector(Vector3<f64>),
 }
@@ -43,7 +51,9 @@ pub enum Target {
 /// One measured image point and what it shows.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Observation {
+    /// The measured pixel.
     pub pixel: Vector2<f64>,
+    /// What it is the image of.
     pub target: Target,
 }
 
@@ -51,16 +61,22 @@ pub struct Observation {
 /// end effector, the block of the unknowns it depends on.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ResidualJacobian {
+    /// d residual / d camera pose (rotation, then centre).
     pub camera: SMatrix<f64, 2, 6>,
+    /// The other unknowns' block.
     pub other: OtherBlock,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
+/// The block of a residual's Jacobian besides the camera's.
 pub enum OtherBlock {
+    /// The point is known (centre, reference): no other unknown.
     None,
     /// d residual / d feature point (rotating frame).
     Feature {
+        /// Which feature.
         index: usize,
+        /// d residual / d feature point.
         jacobian: Matrix2x3<f64>,
     },
     /// d residual / d (base_yaw, base_translation).

@@ -96,6 +96,7 @@ impl Default for NormalBlocks {
 }
 
 impl NormalBlocks {
+    /// All blocks zero.
     pub fn zeros() -> Self {
         Self {
             arrow: ArrowMatrix::zeros(),
@@ -298,7 +299,7 @@ mod tests {
 
     type Dense = SMatrix<f64, PARAMETERS, PARAMETERS>;
 
-    /// The dense accumulation the blocks replace (the refinement's former code).
+    /// The dense accumulation of the full normal equations, the blocks' reference.
     fn dense_accumulate(
         normal: &mut Dense,
         gradient: &mut Increment,

@@ -13,6 +13,7 @@ use super::virtual_rotation::VirtualRotation;
 /// The geometry that maps virtual-image points to the rotating frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct VirtualGeometry {
+    /// The virtual rotation (Steps 1, 3 and 4).
     pub rotation: VirtualRotation,
     /// Image angle of the disc X axis in the virtual image (theta = 0).
     pub gamma: f64,

@@ -9,13 +9,18 @@ use crate::observation::CameraIntrinsics;
 const MIN_DEPTH_M: f64 = 1e-6;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
+/// The contract's camera as the calibration computes with it.
 pub struct Pinhole {
+    /// Focal length, pixels.
     pub f_px: f64,
+    /// Principal point, column, pixels.
     pub cx: f64,
+    /// Principal point, row, pixels.
     pub cy: f64,
 }
 
 impl Pinhole {
+    /// The camera of `intrinsics`.
     pub fn new(intrinsics: &CameraIntrinsics) -> Self {
         Self {
             f_px: intrinsics.f_px,

@@ -20,10 +20,15 @@ use super::records::EffectorRecord;
 /// What the refinement sees: stored observations and how to treat them.
 #[derive(Clone, Copy)]
 pub struct Problem<'a> {
+    /// The camera.
     pub pinhole: Pinhole,
+    /// The stored frames.
     pub frames: FrameView<'a>,
+    /// The stored sightings.
     pub effectors: &'a [EffectorRecord],
+    /// How many features the part has.
     pub feature_count: usize,
+    /// The paper's L, m.
     pub reference_radius_m: f64,
     /// Fix `base_translation.z` (known disc height) instead of estimating it.
     pub fix_base_height: bool,
@@ -69,6 +74,7 @@ impl Loss {
 /// Result of the refinement with its fit statistics.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Refined {
+    /// The refined workcell.
     pub model: WorkcellModel,
     /// RMS 2-D reprojection distance over the points kept (px).
     pub rms_px: f64,

@@ -17,7 +17,10 @@ pub enum Admission {
     Keep,
     /// The store is full: drop every other kept item first (keep positions 0, 2, 4 ...),
     /// then keep this one if it is still on the (doubled) stride.
-    Halve { keep: bool },
+    Halve {
+        /// Whether the new item is kept after halving.
+        keep: bool,
+    },
 }
 
 /// The thinning rule itself, shared by every store that thins (see the module doc).
@@ -28,6 +31,7 @@ pub struct ThinningSchedule {
 }
 
 impl ThinningSchedule {
+    /// Keeping every item.
     pub const fn new() -> Self {
         Self {
             stride: 1,
@@ -71,6 +75,7 @@ pub struct ThinningStore<T, const N: usize> {
 }
 
 impl<T: Copy, const N: usize> ThinningStore<T, N> {
+    /// An empty store.
     pub const fn new() -> Self {
         Self {
             items: Vec::new(),
@@ -99,6 +104,7 @@ impl<T: Copy, const N: usize> ThinningStore<T, N> {
         }
     }
 
+    /// The kept items, oldest first.
     pub fn items(&self) -> &[T] {
         &self.items
     }

@@ -35,6 +35,7 @@ fn sigma<const N: usize>(covariance: &nalgebra::SMatrix<f64, N, N>, index: usize
 }
 
 impl EstimateUncertainty {
+    /// Standard deviations from the marginal `covariance` of the refined parameters.
     pub fn from_covariance(covariance: &MarginalCovariance) -> Self {
         let arrow: &ArrowMatrix = &covariance.camera_and_base;
         let axis = |offset: usize| {

@@ -100,3 +100,5 @@ impl fmt::Display for ControlError {
         }
     }
 }
+
+impl core::error::Error for ControlError {}

@@ -11,6 +11,7 @@
 
 use nalgebra::{convert, Matrix3, RealField, Vector3};
 
+use crate::angle::{wrap_pi, WrapPi};
 use crate::kernels::{add3, all_finite, scale3};
 
 use super::{CounterWidth, EncoderUnwrapper, FusionError};
@@ -28,7 +29,9 @@ pub struct ConveyorState<T> {
     /// the one-sigma values are methods: the control period does not need
     /// their square roots, telemetry does).
     pub variance_theta: T,
+    /// The variance of omega (see `variance_theta`).
     pub variance_omega: T,
+    /// The variance of alpha (see `variance_theta`).
     pub variance_alpha: T,
 }
 
@@ -64,7 +67,7 @@ pub struct ConveyorFilter<T: RealField + Copy> {
     measurement_var: T,
 }
 
-impl<T: RealField + Copy> ConveyorFilter<T> {
+impl<T: RealField + Copy + WrapPi> ConveyorFilter<T> {
     /// `jerk_psd` (rad^2/s^5) sets how quickly the speed may change: about 1 tracks a
     /// few per cent of speed ripple at 1 Hz; smaller smooths more.
     pub fn new(counts_per_rev: u32, width: CounterWidth, jerk_psd: T) -> Result<Self, FusionError> {
@@ -274,35 +277,6 @@ impl<T: RealField + Copy> ConveyorFilter<T> {
     }
 }
 
-/// Wraps an angle to (-pi, pi].
-///
-/// By subtraction of whole turns with a two-part `2 pi` (Cody-Waite): the
-/// control loop wraps several angles every period, and `atan2(sin, cos)`
-/// through libm runs its kernels in f64, which the M4F emulates in software
-/// (about 2,200 instructions a call against about 30). `k * TWO_PI_HIGH` is
-/// exact in f32 for `|k| < 2^15` turns, so the result is as accurate as the
-/// input. A non-finite angle gives NaN.
-pub fn wrap_pi<T: RealField + Copy>(angle: T) -> T {
-    /// `2 pi = TWO_PI_HIGH + TWO_PI_LOW`, the first with 9 significant bits.
-    const TWO_PI_HIGH: f64 = 6.281_25;
-    const TWO_PI_LOW: f64 = core::f64::consts::TAU - TWO_PI_HIGH;
-    let high: T = convert(TWO_PI_HIGH);
-    let low: T = convert(TWO_PI_LOW);
-    let turns = (angle / T::two_pi()).round();
-    let mut wrapped = (angle - turns * high) - turns * low;
-    // Rounding to the nearest turn leaves [-pi, pi] up to an ulp either way.
-    if wrapped <= -T::pi() {
-        wrapped += T::two_pi();
-    } else if wrapped > T::pi() {
-        wrapped -= T::two_pi();
-    }
-    if angle.is_finite() {
-        wrapped
-    } else {
-        angle * T::zero()
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -338,29 +312,6 @@ mod tests {
         }
     }
 
-    #[test]
-    fn wrap_pi_agrees_with_atan2_of_sine_and_cosine() {
-        for k in -200_000..=200_000 {
-            let angle = f64::from(k) * 7.3e-4; // +-146 rad, every branch
-            let expected = angle.sin().atan2(angle.cos());
-            let wrapped = wrap_pi(angle);
-            assert!(wrapped > -core::f64::consts::PI && wrapped <= core::f64::consts::PI);
-            let difference = (wrapped - expected).abs();
-            // +-pi are the same angle
-            let difference = difference.min((difference - core::f64::consts::TAU).abs());
-            assert!(difference < 1e-13, "{angle}: {wrapped} vs {expected}");
-            let single = wrap_pi(angle as f32);
-            let difference = (f64::from(single) - expected).abs();
-            let difference = difference.min((difference - core::f64::consts::TAU).abs());
-            assert!(difference < 2e-5, "f32 {angle}: {single} vs {expected}");
-        }
-        assert_eq!(wrap_pi(-core::f64::consts::PI), core::f64::consts::PI);
-        assert_eq!(wrap_pi(core::f64::consts::PI), core::f64::consts::PI);
-        assert_eq!(wrap_pi(0.0_f32), 0.0);
-        assert!(wrap_pi(f32::NAN).is_nan());
-        assert!(wrap_pi(f64::INFINITY).is_nan());
-    }
-
     const CPR: u32 = 16_384;
 
     fn quantised(theta: f64, width: CounterWidth, start_raw: u32) -> u32 {
@@ -374,7 +325,7 @@ mod tests {
     }
 
     /// Speed ripple, a reversal and a standstill, through a wrapping 16-bit counter.
-    fn run<T: RealField + Copy>(tol_theta: f64, tol_omega: f64) {
+    fn run<T: RealField + Copy + WrapPi>(tol_theta: f64, tol_omega: f64) {
         let mut filter = ConveyorFilter::<T>::new(CPR, CounterWidth::Bits16, convert(1.0)).unwrap();
         let profile = |t: f64| -> (f64, f64) {
             // omega(t): 0.5 rad/s with 5 % ripple at 1 Hz for 20 s, then -0.3 rad/s, then 0.

@@ -12,11 +12,14 @@ use super::FusionError;
 /// The width of the hardware counter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CounterWidth {
+    /// A 16-bit counter.
     Bits16,
+    /// A 32-bit counter.
     Bits32,
 }
 
 impl CounterWidth {
+    /// The counter's width in bits.
     pub const fn bits(self) -> u8 {
         match self {
             Self::Bits16 => 16,
@@ -42,6 +45,7 @@ pub struct EncoderUnwrapper {
 }
 
 impl EncoderUnwrapper {
+    /// An unwrapper for a counter of `width`, before its first reading.
     pub const fn new(width: CounterWidth) -> Self {
         Self {
             width,

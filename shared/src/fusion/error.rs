@@ -4,18 +4,37 @@ use core::fmt;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum FusionError {
     /// A counter reading does not fit the configured counter width.
-    CounterOutOfRange { raw: u32, bits: u8 },
+    CounterOutOfRange {
+        /// The reading.
+        raw: u32,
+        /// The counter's width in bits.
+        bits: u8,
+    },
     /// Counts per revolution must be positive.
     ZeroCountsPerRevolution,
     /// A sample's time did not advance (`dt_s` is the step it implied).
-    TimeNotIncreasing { dt_s: f64 },
+    TimeNotIncreasing {
+        /// The time step the sample implied, s.
+        dt_s: f64,
+    },
     /// A non-finite number in the named input.
-    NonFinite { what: &'static str },
+    NonFinite {
+        /// The input holding it.
+        what: &'static str,
+    },
     /// A filter parameter is out of its valid range.
-    InvalidParameter { what: &'static str },
+    InvalidParameter {
+        /// The parameter.
+        what: &'static str,
+    },
     /// A reading jumped further from the prediction than the disc can move
     /// (`innovation_rad` from it, beyond `gate_rad`): a counter glitch.
-    Implausible { innovation_rad: f64, gate_rad: f64 },
+    Implausible {
+        /// How far the reading is from the prediction, rad.
+        innovation_rad: f64,
+        /// The gate, rad.
+        gate_rad: f64,
+    },
 }
 
 impl fmt::Display for FusionError {
@@ -42,3 +61,5 @@ impl fmt::Display for FusionError {
         }
     }
 }
+
+impl core::error::Error for FusionError {}

@@ -10,26 +10,30 @@
 
 use nalgebra::{RealField, Vector3};
 
-use super::conveyor::wrap_pi;
+use crate::angle::{wrap_pi, WrapPi};
 
 /// The part's motion in the base frame at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PartMotion<T: RealField + Copy> {
+    /// Position, base frame.
     pub position_base: Vector3<T>,
+    /// Velocity, base frame.
     pub velocity_base: Vector3<T>,
+    /// Acceleration, base frame.
     pub acceleration_base: Vector3<T>,
     /// The part's yaw in the base frame (its rotating-frame yaw carried round by
     /// theta and the disc's yaw), wrapped to (-pi, pi].
     pub yaw_base: T,
     /// Its angular velocity and acceleration about the base +Z (the disc's).
     pub yaw_rate: T,
+    /// Its angular acceleration (see `yaw_rate`).
     pub yaw_acceleration: T,
 }
 
 /// Eq 1 for a point `p_rotating` of a part whose rotating-frame yaw is
 /// `yaw_rotating`, with `base_from_disc = (disc_yaw, disc_translation)` and the
 /// conveyor at `(theta, omega, alpha)`.
-pub fn part_motion_in_base<T: RealField + Copy>(
+pub fn part_motion_in_base<T: RealField + Copy + WrapPi>(
     disc_yaw: T,
     disc_translation_base: &Vector3<T>,
     p_rotating: &Vector3<T>,

@@ -11,6 +11,7 @@
 /// Values latched at one camera trigger.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LatchedSample {
+    /// The trigger the camera was fired with.
     pub trigger_id: u32,
     /// Unwrapped conveyor count at the trigger.
     pub conveyor_counts: i64,
@@ -22,6 +23,7 @@ pub struct LatchedSample {
 
 /// A record kept per trigger: the latched values, maybe with more context.
 pub trait Triggered: Copy {
+    /// The trigger this record was latched at.
     fn trigger_id(&self) -> u32;
 }
 
@@ -45,6 +47,7 @@ impl<const N: usize, T: Triggered> Default for TriggerLatch<N, T> {
 }
 
 impl<const N: usize, T: Triggered> TriggerLatch<N, T> {
+    /// No trigger pending.
     pub const fn new() -> Self {
         Self {
             slots: [None; N],

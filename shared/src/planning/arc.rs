@@ -15,11 +15,14 @@ use super::{PlanError, Quintic, TaskState};
 /// A point in cylindrical coordinates about the base Z axis, with the gripper's yaw.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArcPoint<T> {
+    /// Distance from the base Z axis, m.
     pub radius_m: T,
     /// Angle about the base Z axis from +X, rad (not wrapped: a move goes from one
     /// value to the other the way the numbers say).
     pub azimuth_rad: T,
+    /// Height, m.
     pub z_m: T,
+    /// The gripper's yaw, rad.
     pub yaw_rad: T,
 }
 
@@ -42,9 +45,13 @@ impl<T: RealField + Copy> ArcPoint<T> {
 /// Speed limits that set an arc's duration.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArcLimits<T> {
+    /// Largest speed along the arc, m/s.
     pub max_speed_m_s: T,
+    /// Largest acceleration, m/s^2.
     pub max_acceleration_m_s2: T,
+    /// Largest yaw rate, rad/s.
     pub max_yaw_rate_rad_s: T,
+    /// Shortest duration, s.
     pub min_duration_s: T,
 }
 

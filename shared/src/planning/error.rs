@@ -4,24 +4,48 @@ use core::fmt;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum PlanError {
     /// A non-finite number in the named input.
-    NonFinite { what: &'static str },
+    NonFinite {
+        /// The input holding it.
+        what: &'static str,
+    },
     /// A segment duration must be positive and finite.
     InvalidDuration,
     /// A limit or configuration value is out of range.
-    InvalidLimits { what: &'static str },
+    InvalidLimits {
+        /// The limit or value.
+        what: &'static str,
+    },
     /// The pose could not be reached: the residual after the last iteration.
     IkDidNotConverge {
+        /// Position residual, m.
         position_error_m: f64,
+        /// Orientation residual, rad.
         orientation_error_rad: f64,
     },
     /// The solution breaks joint `joint`'s position limit.
-    JointPositionLimit { joint: usize },
+    JointPositionLimit {
+        /// The joint, 0-based.
+        joint: usize,
+    },
     /// Following the plan would exceed joint `joint`'s speed limit at `time_s`.
-    JointVelocityLimit { joint: usize, time_s: f64 },
+    JointVelocityLimit {
+        /// The joint, 0-based.
+        joint: usize,
+        /// When along the plan, s.
+        time_s: f64,
+    },
     /// Following the plan would exceed joint `joint`'s torque limit at `time_s`.
-    JointTorqueLimit { joint: usize, time_s: f64 },
+    JointTorqueLimit {
+        /// The joint, 0-based.
+        joint: usize,
+        /// When along the plan, s.
+        time_s: f64,
+    },
     /// The Jacobian is singular along the plan at `time_s`.
-    Singular { time_s: f64 },
+    Singular {
+        /// When along the plan, s.
+        time_s: f64,
+    },
     /// No duration up to the maximum meets the part within the limits.
     NoFeasibleIntercept,
 }
@@ -51,3 +75,5 @@ impl fmt::Display for PlanError {
         }
     }
 }
+
+impl core::error::Error for PlanError {}

@@ -15,8 +15,11 @@ use crate::robot::{JointVector, Puma560};
 /// Iteration limits and tolerances.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IkConfig<T> {
+    /// Most Newton steps.
     pub max_iterations: u32,
+    /// Position tolerance, m.
     pub position_tolerance_m: T,
+    /// Orientation tolerance, rad.
     pub orientation_tolerance_rad: T,
     /// DLS damping `lambda` (m-equivalent units).
     pub damping: T,

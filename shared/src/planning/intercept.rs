@@ -24,11 +24,17 @@ use crate::robot::{JointVector, Puma560};
 /// yaw about the vertical and its derivatives; the gripper points down.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TaskState<T: RealField + Copy> {
+    /// Flange position, base frame, m.
     pub position: Vector3<T>,
+    /// Its velocity, m/s.
     pub velocity: Vector3<T>,
+    /// Its acceleration, m/s^2.
     pub acceleration: Vector3<T>,
+    /// Yaw about the base Z, rad.
     pub yaw: T,
+    /// Its rate, rad/s.
     pub yaw_rate: T,
+    /// Its acceleration, rad/s^2.
     pub yaw_acceleration: T,
 }
 
@@ -80,10 +86,15 @@ impl<T: RealField + Copy> TaskState<T> {
 /// Limits and search settings of the planner.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct InterceptLimits<T> {
+    /// Largest flange speed, m/s.
     pub max_speed_m_s: T,
+    /// Largest flange acceleration, m/s^2.
     pub max_acceleration_m_s2: T,
+    /// Largest yaw rate, rad/s.
     pub max_yaw_rate_rad_s: T,
+    /// Shortest intercept considered, s.
     pub min_duration_s: T,
+    /// Longest intercept considered, s.
     pub max_duration_s: T,
     /// Step of the coarse scan over durations.
     pub duration_step_s: T,
@@ -150,6 +161,7 @@ impl<T: RealField + Copy> InterceptPlan<T> {
         })
     }
 
+    /// The plan's duration, s.
     pub fn duration(&self) -> T {
         self.position.duration()
     }

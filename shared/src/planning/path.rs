@@ -17,6 +17,7 @@ use crate::robot::{JointVector, Puma560};
 /// m^3 and a straight elbow's 0; below the margins Eq 23's joint accelerations,
 /// and the joint speeds a task speed needs, grow without bound.
 pub const MIN_ARM_MANIPULABILITY: f64 = 0.05;
+/// The wrist's margin: `|sin q5|` at least this (see [`MIN_ARM_MANIPULABILITY`]).
 pub const MIN_WRIST_SINE: f64 = 0.1;
 
 /// Largest share of the arm's full stretch (shoulder to wrist centre, `a2 +
@@ -63,6 +64,7 @@ pub fn well_conditioned<T: RealField + Copy>(robot: &Puma560<T>, q: &JointVector
 
 /// A desired flange motion over `[0, duration]` (gripper down, yaw about Z).
 pub trait TaskPath<T: RealField + Copy> {
+    /// The path's duration, s.
     fn duration(&self) -> T;
     /// The desired state at `t` (clamped to the path).
     fn sample(&self, t: T) -> TaskState<T>;

@@ -57,6 +57,7 @@ impl<T: RealField + Copy, const D: usize> Quintic<T, D> {
         })
     }
 
+    /// The segment's duration, s.
     pub fn duration(&self) -> T {
         self.duration
     }

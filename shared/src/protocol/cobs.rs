@@ -16,6 +16,19 @@ pub enum CobsError {
     Malformed,
 }
 
+impl core::fmt::Display for CobsError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::OutputFull => f.write_str("COBS: the output buffer is too small for the body"),
+            Self::Malformed => {
+                f.write_str("COBS: a code byte is 0 or points past the end of the body")
+            }
+        }
+    }
+}
+
+impl core::error::Error for CobsError {}
+
 /// Encodes `raw` into `out` (no delimiter); returns the encoded length.
 pub fn encode(raw: &[u8], out: &mut [u8]) -> Result<usize, CobsError> {
     let mut code_at = 0usize;

@@ -43,18 +43,31 @@ impl fmt::Display for EncodeError {
     }
 }
 
+impl core::error::Error for EncodeError {}
+
 /// Why a received frame was rejected. The decoder has already resynchronised.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DecodeError {
     /// More than [`MAX_BODY_LEN`] bytes arrived without a delimiter; `discarded` bytes were dropped.
-    Oversized { discarded: usize },
+    Oversized {
+        /// Bytes dropped.
+        discarded: usize,
+    },
     /// The COBS body was malformed.
     Corrupt,
     /// Shorter than a CRC.
-    TooShort { len: usize },
+    TooShort {
+        /// The frame's length, bytes.
+        len: usize,
+    },
     /// The CRC did not match.
-    BadCrc { expected: u32, found: u32 },
+    BadCrc {
+        /// The CRC the frame carries.
+        expected: u32,
+        /// The CRC of its payload.
+        found: u32,
+    },
     /// The CRC matched but the payload was not exactly one valid message.
     BadMessage,
 }
@@ -80,6 +93,8 @@ impl fmt::Display for DecodeError {
         }
     }
 }
+
+impl core::error::Error for DecodeError {}
 
 /// Encodes `message` as one complete frame into `out`; returns the frame's length.
 pub fn encode_frame(message: &Message, out: &mut [u8]) -> Result<usize, EncodeError> {
@@ -125,6 +140,7 @@ impl Default for FrameDecoder {
 }
 
 impl FrameDecoder {
+    /// A decoder waiting for the first delimiter.
     pub const fn new() -> Self {
         Self {
             body: [0; MAX_BODY_LEN],

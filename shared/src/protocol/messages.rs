@@ -20,7 +20,9 @@ pub const JOINTS: usize = 6;
 /// `center_px`, `reference_px`, `part_px[i]`, `effector_px[i]`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum PointLabel {
+    /// The disc's centre mark (`center_px`).
     DiscCenter,
+    /// The reference mark at the paper's radius L (`reference_px`).
     Reference,
     /// Part feature `i`, in the part's fixed feature order.
     Part(u8),
@@ -31,9 +33,11 @@ pub enum PointLabel {
 /// One detected image point.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LabeledPoint {
+    /// Which mark this is the image of.
     pub label: PointLabel,
     /// Pixel coordinates, u right, v down, `(0, 0)` the top-left pixel centre.
     pub u_px: f32,
+    /// Pixel row coordinate, down (see `u_px`).
     pub v_px: f32,
 }
 
@@ -43,9 +47,11 @@ pub struct LabeledPoint {
 /// the conveyor angle of the observation.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CameraFeatureFrame {
+    /// The trigger the camera was fired with (pairs the frame with the latched encoders).
     pub trigger_id: u32,
     /// Exposure time on the vision computer's clock, microseconds.
     pub capture_time_us: u64,
+    /// The points detected, each labelled.
     pub points: Vec<LabeledPoint, MAX_FEATURE_POINTS>,
 }
 
@@ -53,7 +59,9 @@ pub struct CameraFeatureFrame {
 /// controller runs against it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SensorSample {
+    /// Sequence number, echoed by the answering command.
     pub seq: u32,
+    /// The sample's time on the plant's clock, microseconds.
     pub time_us: u64,
     /// Joint encoder counts (the sign convention and counts per radian are the board's).
     pub joint_counts: [i32; JOINTS],
@@ -66,15 +74,20 @@ pub struct SensorSample {
 /// Gripper jaws.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum GripperCommand {
+    /// Jaws open (release).
     Open,
+    /// Jaws closed (grasp).
     Close,
 }
 
 /// Joint torques for the plant's servo drives.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ActuatorCommand {
+    /// The sequence number of the sample this command answers.
     pub seq: u32,
+    /// Joint torques, N m, joint 1 first.
     pub joint_torque_nm: [f32; JOINTS],
+    /// What the gripper's jaws do.
     pub gripper: GripperCommand,
     /// Fire the camera with this trigger id in this period.
     pub camera_trigger: Option<u32>,
@@ -83,14 +96,18 @@ pub struct ActuatorCommand {
 /// The controller's coarse mode.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum ControllerMode {
+    /// No pick configured.
     Idle,
+    /// A pick is configured and runs.
     Running,
+    /// The pick stopped on a fault.
     Faulted,
 }
 
 /// Controller status and link telemetry.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ControllerStatus {
+    /// The controller's coarse mode.
     pub mode: ControllerMode,
     /// Control-loop periods executed since boot (proves the executor and time driver run).
     pub control_ticks: u64,
@@ -107,8 +124,11 @@ pub struct ControllerStatus {
 /// The kind of a data frame being acknowledged.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum MessageKind {
+    /// A [`Message::CameraFeatures`] frame (token: its trigger id).
     CameraFeatures,
+    /// A [`Message::SensorSample`] (token: its sequence number).
     SensorSample,
+    /// A [`Message::ActuatorCommand`] (token: its sequence number).
     ActuatorCommand,
     /// A cell configuration (token 0).
     Configure,
@@ -141,9 +161,10 @@ pub enum ErrorCode {
     /// (1 pick active, 2 joint moving, 3 motion unknown, 4 gripper holds,
     /// 5 drives on), the pick phase's or joint's index in the lower 16. The
     /// running controller is kept; send the configuration again once the
-    /// pick has ended and the arm is at rest. Appended last, so every older
-    /// message keeps its encoding; a host built before it decodes this one
-    /// report as a bad message and still sees no `Ack` of its configuration.
+    /// pick has ended and the arm is at rest. It is the last code, so the
+    /// others' encodings do not depend on it; a host that does not know it
+    /// decodes this report as a bad message and still sees no `Ack` of its
+    /// configuration.
     ConfigurationRefusedActive,
 }
 
@@ -170,33 +191,49 @@ impl ErrorCode {
 pub enum Message {
     /// Host -> controller: open a session.
     Hello {
+        /// The protocol version the host speaks.
         protocol_version: u16,
+        /// The host's name, for logs.
         peer_name: String<MAX_NAME_LEN>,
     },
     /// Controller -> host: session accepted.
     HelloAck {
+        /// The protocol version the controller speaks.
         protocol_version: u16,
+        /// The board's name (emulated or real).
         board_name: String<MAX_NAME_LEN>,
+        /// The firmware's version.
         firmware_version: String<MAX_VERSION_LEN>,
+        /// Control periods per second.
         control_rate_hz: u32,
+        /// The longest frame the controller accepts, bytes.
         max_frame_len: u16,
     },
+    /// Vision computer -> controller: one camera frame's detections.
     CameraFeatures(CameraFeatureFrame),
+    /// Plant -> controller: one period's encoder readings.
     SensorSample(SensorSample),
+    /// Controller -> plant: one period's torques and gripper command.
     ActuatorCommand(ActuatorCommand),
     /// Host -> controller: send a `Status`.
     StatusRequest,
+    /// Controller -> host: the controller's mode and link counters.
     Status(ControllerStatus),
     /// Controller -> host: data frame `token` (its trigger id or sequence number)
     /// was the `counter`-th data frame of this session.
     Ack {
+        /// Which kind of data frame.
         kind: MessageKind,
+        /// Its trigger id or sequence number.
         token: u32,
+        /// Data frames of this session so far, this one included.
         counter: u32,
     },
     /// Something was rejected; `detail` is code-specific (e.g. a running count).
     ErrorReport {
+        /// What was rejected.
         code: ErrorCode,
+        /// Code-specific detail.
         detail: u32,
     },
     /// Host -> controller: arm the pick with the cell's configuration. From then
@@ -227,6 +264,7 @@ pub enum CostUnit {
 /// Costs and margins measured by the firmware since the cell was configured.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct RuntimeReport {
+    /// What the costs below are counted in.
     pub unit: CostUnit,
     /// Microseconds since boot on the controller's clock (0: not measured).
     pub uptime_us: u64,
@@ -234,12 +272,15 @@ pub struct RuntimeReport {
     pub control_ticks: u64,
     /// One control period (sample in to command out): worst and mean.
     pub control_worst: u32,
+    /// The mean control period's cost (see `control_worst`).
     pub control_mean: u32,
     /// Background jobs run (estimates and plans) and the worst one's cost.
     pub jobs_run: u32,
+    /// The worst job's cost (see `jobs_run`).
     pub job_worst: u32,
     /// Deepest stack use seen (stack painting) and the stack's size, bytes.
     pub stack_used_bytes: u32,
+    /// The stack's size, bytes (see `stack_used_bytes`).
     pub stack_size_bytes: u32,
     /// Control periods that overran their deadline.
     pub deadline_misses: u32,
@@ -253,13 +294,14 @@ pub struct RuntimeReport {
     /// The worst control period: its index among `control_ticks` and the
     /// pick's phase at its end (where to look for the cost).
     pub control_worst_tick: u64,
+    /// The pick's phase at the end of the worst period (see `control_worst_tick`).
     pub control_worst_phase: PickPhase,
     /// The last accepted reconfiguration's cost (building the new pick in
     /// the control loop; 0 before any). It runs in a control period of its
     /// own, with the arm at rest (`shared::safety::reconfigure`), and is not
-    /// counted in `control_worst` or as a deadline miss. Appended last: a
-    /// host built before it refuses this message as a bad frame (postcard
-    /// allows no trailing bytes), every other message is unchanged.
+    /// counted in `control_worst` or as a deadline miss. It is the last
+    /// field: a host whose report lacks it refuses this message as a bad
+    /// frame (postcard allows no trailing bytes); no other message holds it.
     pub reconfigure_cost: u32,
 }
 

@@ -17,9 +17,13 @@ use super::JOINTS;
 pub struct CellConfig {
     /// Image size and pinhole intrinsics (known, paper assumption A5).
     pub image_width_px: u16,
+    /// Image height, pixels.
     pub image_height_px: u16,
+    /// Focal length, pixels.
     pub f_px: f32,
+    /// Principal point, column, pixels.
     pub cx_px: f32,
+    /// Principal point, row, pixels.
     pub cy_px: f32,
     /// Standard deviation of a detection, pixels (weights the estimator).
     pub pixel_sigma_px: f32,
@@ -61,11 +65,17 @@ pub enum PickPhase {
     Intercept,
     /// Above the grasp point, matching the part's velocity.
     Track,
+    /// Lowering the gripper onto the part while following it.
     Descend,
+    /// Closing the gripper on the part.
     Grasp,
+    /// Lifting the part off the disc.
     Lift,
+    /// Carrying the part to the drop-off and lowering it there.
     Place,
+    /// Opening the gripper over the drop-off.
     Release,
+    /// Going back to the start pose.
     Return,
     /// The part is placed and the arm is back at its ready pose.
     Done,
@@ -129,27 +139,39 @@ pub enum FaultCause {
 /// A snapshot of the controller's estimates, sent every `telemetry_period_ticks`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct PickTelemetry {
+    /// The sample's time, microseconds.
     pub time_us: u64,
+    /// Where the pick stands.
     pub phase: PickPhase,
+    /// Why it stopped, if it did.
     pub fault: Option<FaultCause>,
     /// Conveyor angle (wrapped to (-pi, pi]), speed, and their 1-sigma.
     pub theta_rad: f32,
+    /// Conveyor speed, rad/s.
     pub omega_rad_s: f32,
+    /// 1-sigma of the conveyor angle, rad.
     pub sigma_theta_rad: f32,
+    /// 1-sigma of the conveyor speed, rad/s.
     pub sigma_omega_rad_s: f32,
     /// The part's fused pose in the base frame (Eq 1), once calibrated.
     pub part_base_m: Option<[f32; 3]>,
+    /// The part's yaw in the base frame, rad (0 before calibration).
     pub part_yaw_base_rad: f32,
+    /// The part's velocity in the base frame, m/s (0 before calibration).
     pub part_velocity_base_m_s: [f32; 3],
     /// 1-sigma of the part's position from the estimator.
     pub part_sigma_m: f32,
     /// The grasp point (tool centre) measured through the joint encoders, and where it is sent.
     pub tool_base_m: [f32; 3],
+    /// Where the grasp point is sent (the reference), base frame.
     pub tool_reference_base_m: [f32; 3],
+    /// The flange's yaw measured through the joint encoders, rad.
     pub tool_yaw_rad: f32,
+    /// The reference yaw, wrapped to (-pi, pi].
     pub tool_reference_yaw_rad: f32,
     /// Camera frames paired with their trigger, and those refused (unknown or stale trigger).
     pub frames_paired: u32,
+    /// Camera frames that matched no trigger (see `frames_paired`).
     pub frames_unpaired: u32,
     /// Control periods whose torque was clipped to the drive limits.
     pub saturated_ticks: u32,
@@ -161,20 +183,30 @@ pub struct PickTelemetry {
 /// The result of a self-calibration, summarised for telemetry (f32).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct CalibrationReport {
+    /// When the estimate was made, microseconds.
     pub time_us: u64,
+    /// The camera's height above the disc plane, m.
     pub camera_height_m: f32,
     /// Angle of the camera's optical axis from the disc's downward normal.
     pub camera_tilt_rad: f32,
+    /// `base_from_disc`'s yaw (Eqs 13 and 14), rad.
     pub base_yaw_rad: f32,
+    /// `base_from_disc`'s translation (Eq 15), m.
     pub base_translation_m: [f32; 3],
     /// The part in the rotating frame (mean of its features) and its yaw.
     pub part_rotating_m: [f32; 3],
+    /// The part's yaw in the rotating frame, rad.
     pub part_yaw_rotating_rad: f32,
     /// 1-sigma of the part position, the base translation and the base yaw.
     pub sigma_part_m: f32,
+    /// 1-sigma of the base translation, m (see `sigma_part_m`).
     pub sigma_base_m: f32,
+    /// 1-sigma of the base yaw, rad (see `sigma_part_m`).
     pub sigma_base_yaw_rad: f32,
+    /// Frames the estimate used.
     pub frames_used: u16,
+    /// Sightings of the gripper's marks the estimate used.
     pub effector_frames_used: u16,
+    /// Root mean square reprojection error of the fit, pixels.
     pub rms_reprojection_px: f32,
 }

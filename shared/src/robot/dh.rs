@@ -1,6 +1,6 @@
 //! Standard (distal) Denavit-Hartenberg link transforms, specialised to the twists of the PUMA 560.
 //!
-//! `A_i(q_i) = Rz(q_i) Tz(d_i) Tx(a_i) Rx(alpha_i)` (puma560-model.md, "Conventions"). Every PUMA
+//! `A_i(q_i) = Rz(q_i) Tz(d_i) Tx(a_i) Rx(alpha_i)` (`docs/reference/puma560-model.md`, "Conventions"). Every PUMA
 //! twist is 0 or ±pi/2, so `Rx(alpha_i)` is a signed permutation: applying it costs sign flips and
 //! swaps instead of a 3x3 product. Only `Rz(q_i)` needs the joint's sine and cosine, computed once
 //! per call in [`JointTrig`]. This is what keeps the recursive algorithms fast (the brief's 0.5 us

@@ -50,3 +50,5 @@ impl fmt::Display for RobotError {
         }
     }
 }
+
+impl core::error::Error for RobotError {}

@@ -3,7 +3,7 @@
 //!
 //! One generic implementation serves the f64 plant (host simulator) and the f32 controller
 //! (firmware): `Puma560<T: RealField + Copy>`. Conventions (standard DH, frame {6} flange, COM and
-//! inertia in the distal frame {j}, gravity `[0, 0, -9.81]`) are those of `puma560-model.md`.
+//! inertia in the distal frame {j}, gravity `[0, 0, -9.81]`) are those of `docs/reference/puma560-model.md`.
 //!
 //! Modules, one concept each: [`table`] (parameters and their sources), [`dh`] (link transforms),
 //! [`model`] (the struct and builders), [`kinematics`] (FK, Jacobian, `Jdot qd`), [`rnea`]

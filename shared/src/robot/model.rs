@@ -161,7 +161,7 @@ impl<T: RealField + Copy> Default for Puma560<T> {
 }
 
 impl<T: RealField + Copy> Puma560<T> {
-    /// The rigid-body table of `puma560-model.md`: no armature, no friction, no payload,
+    /// The rigid-body table of `docs/reference/puma560-model.md`: no armature, no friction, no payload,
     /// gravity `[0, 0, -9.81]`.
     pub fn new() -> Self {
         let dh = table::DH_ROWS.map(|(a, d, twist)| DhLink {

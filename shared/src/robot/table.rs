@@ -1,4 +1,4 @@
-//! The PUMA 560 parameter table of `puma560-model.md` (f64, SI), plus the joint speed (Corke 1996) and torque (AKB86) limits.
+//! The PUMA 560 parameter table of `docs/reference/puma560-model.md` (f64, SI), plus the joint speed (Corke 1996) and torque (AKB86) limits.
 //!
 //! Source of the kinematic and dynamic rows (as the model file states): Robotics Toolbox for
 //! Python 1.5.0, `models.DH.Puma560()`, which cites P. Corke and B. Armstrong-Helouvry, "A search

@@ -18,6 +18,7 @@ pub struct DeadlineMonitor {
 }
 
 impl DeadlineMonitor {
+    /// No deadline missed yet.
     pub const fn new() -> Self {
         DeadlineMonitor { in_a_row: 0 }
     }

@@ -26,6 +26,7 @@ impl BoardFault {
         }
     }
 
+    /// The fault of `code`, if it is one ([`BoardFault::code`]).
     pub fn from_code(code: u8) -> Option<BoardFault> {
         match code {
             1 => Some(BoardFault::Panic),
@@ -49,6 +50,7 @@ pub struct FaultLatch {
 }
 
 impl FaultLatch {
+    /// Nothing latched.
     pub const fn new() -> Self {
         FaultLatch {
             code: AtomicU8::new(0),
@@ -62,6 +64,7 @@ impl FaultLatch {
             .compare_exchange(0, fault.code(), Ordering::SeqCst, Ordering::SeqCst);
     }
 
+    /// The fault latched, if any.
     pub fn latched(&self) -> Option<BoardFault> {
         BoardFault::from_code(self.code.load(Ordering::SeqCst))
     }

@@ -61,9 +61,13 @@ pub struct ParkingOutput {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+/// Where the parking sequence stands (see the module's steps).
 pub enum ParkState {
+    /// The pick drives; the brakes are released.
     Active,
+    /// The brakes engage while the drives still hold the arm.
     Engaging,
+    /// Brakes engaged, drives off, until a configuration is accepted.
     Parked,
 }
 
@@ -83,6 +87,7 @@ impl Default for Parking {
 }
 
 impl Parking {
+    /// Active: nothing parked.
     pub const fn new() -> Self {
         Parking {
             state: ParkState::Active,
@@ -90,6 +95,7 @@ impl Parking {
         }
     }
 
+    /// Where the sequence stands.
     pub fn state(&self) -> ParkState {
         self.state
     }

@@ -51,10 +51,16 @@ pub struct CellState {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ReconfigureRefusal {
     /// The pick is moving the arm (or stopping it) in this phase.
-    PickActive { phase: PickPhase },
+    PickActive {
+        /// The pick's phase.
+        phase: PickPhase,
+    },
     /// A joint (0-based) moves faster than [`REST_SPEED_RAD_S`], or its
     /// speed is not a number.
-    JointMoving { joint: u8 },
+    JointMoving {
+        /// The joint, 0-based.
+        joint: u8,
+    },
     /// Too few samples to know the joints' speeds.
     MotionUnknown,
     /// The gripper is closed or holds a part: a new pick would open it.

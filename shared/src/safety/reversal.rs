@@ -4,9 +4,9 @@
 //! moment it is written) and a PWM duty from a timer whose compare register
 //! is preloaded (a write takes effect at the timer's next update event, the
 //! start of the next PWM period: up to 50 us at 20 kHz). Writing the
-//! direction and then the duty, as the board used to, drives the old
-//! magnitude the new way for up to one PWM period at every zero crossing:
-//! full duty reversed for 50 us at a saturated reversal.
+//! direction and then the duty would drive the previous magnitude the new
+//! way for up to one PWM period at every zero crossing: full duty reversed
+//! for 50 us at a saturated reversal.
 //!
 //! So at a sign change the drive (1) writes duty 0 to the preload register,
 //! (2) forces an update event (the timer's UG bit: the preload is
@@ -99,8 +99,8 @@ mod tests {
     }
 
     /// Saturated reversals back and forth: the planned steps never drive a
-    /// duty the wrong way; the old order (direction, then duty) does, which
-    /// the model sees (so the test would fail without the fix).
+    /// duty the wrong way; the naive order (direction, then duty) does, and
+    /// the model sees it (so the test tells the two orders apart).
     #[test]
     fn a_reversal_never_drives_the_old_duty_the_new_way() {
         let commands = [

@@ -23,6 +23,7 @@ pub struct JointBrake {
 }
 
 impl JointBrake {
+    /// A brake not yet started.
     pub fn new() -> Self {
         Self::default()
     }

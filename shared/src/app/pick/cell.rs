@@ -12,6 +12,7 @@ use crate::protocol::CellConfig;
 /// A configuration value out of range; `field` names it as in [`CellConfig`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ConfigError {
+    /// The [`CellConfig`] field out of range.
     pub field: &'static str,
 }
 
@@ -21,11 +22,16 @@ impl core::fmt::Display for ConfigError {
     }
 }
 
+impl core::error::Error for ConfigError {}
+
 /// A [`CellConfig`] that passed its checks.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Cell {
+    /// The configuration as given.
     pub config: CellConfig,
+    /// The conveyor counter's width.
     pub counter_width: CounterWidth,
+    /// The drop-off's grasp point, base frame.
     pub drop_off_base: Vector3<f32>,
 }
 
@@ -42,6 +48,7 @@ fn positive(x: f32) -> bool {
 }
 
 impl Cell {
+    /// Checks `config`.
     pub fn new(config: &CellConfig) -> Result<Self, ConfigError> {
         check(config.image_width_px > 0, "image_width_px")?;
         check(config.image_height_px > 0, "image_height_px")?;
@@ -105,6 +112,7 @@ impl Cell {
         }
     }
 
+    /// The calibrator's configuration for this cell.
     pub fn calibration_config(&self) -> CalibrationConfig {
         CalibrationConfig {
             disc_height_in_base_m: self.config.disc_height_in_base_m.map(f64::from),

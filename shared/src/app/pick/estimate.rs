@@ -15,13 +15,17 @@ use crate::protocol::CalibrationReport;
 pub struct CellEstimate {
     /// `base_from_disc` (Eqs 13 and 14).
     pub base_yaw: f32,
+    /// `base_from_disc`'s translation (Eq 15), m.
     pub base_translation: Vector3<f32>,
     /// The grasp point (mean of the features, paper Eqs 3 to 8) in the rotating frame, and the part's yaw.
     pub part_rotating: Vector3<f32>,
+    /// The part's yaw in the rotating frame, rad.
     pub part_yaw_rotating: f32,
     /// `disc_from_camera` (f64: only the planner uses it).
     pub disc_from_camera: Matrix3<f64>,
+    /// The camera's centre in the disc frame (with `disc_from_camera`).
     pub camera_centre_disc: Vector3<f64>,
+    /// The estimate as telemetry reports it.
     pub report: CalibrationReport,
 }
 
@@ -35,6 +39,8 @@ fn to_f32(v: &[f64; 3]) -> [f32; 3] {
 }
 
 impl CellEstimate {
+    /// The estimate from a calibration `result`, its uncertainty `sigma`, made at
+    /// `time_us`.
     pub fn new(result: &CalibrationResult, sigma: &EstimateUncertainty, time_us: u64) -> Self {
         let rows = result.camera.disc_from_camera.rotation;
         let rotation = Matrix3::from_fn(|r, c| {

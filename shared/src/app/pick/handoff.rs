@@ -1,8 +1,8 @@
 //! What the pick's three parts hand each other. The control loop
 //! ([`super::PickController`], high priority) never waits for the others: it
 //! latches the encoders at each camera trigger and asks for background jobs; the
-//! frame pairer ([`super::FramePairer`], on the link) turns each camera frame
-//! into an observation; the worker ([`super::PickWorker`], low priority) feeds
+//! frame pairer ([`super::pairing::FramePairer`], on the link) turns each camera frame
+//! into an observation; the worker ([`super::worker::PickWorker`], low priority) feeds
 //! the calibrator and runs the jobs. The firmware passes these through
 //! critical-section channels between its tasks; the in-process simulator calls
 //! the same three parts in the same order, so both run the same pick.
@@ -30,6 +30,7 @@ pub enum JobRequest {
     /// Self-calibrate from what the calibrator holds (Sections 2 and 3); a
     /// preliminary estimate also chooses the poses to show the marks at.
     Estimate {
+        /// A preliminary estimate (from the search) rather than the final one.
         preliminary: bool,
         /// Controller time of the request (stamped on the estimate).
         time_us: u64,
@@ -40,9 +41,13 @@ pub enum JobRequest {
     },
     /// Plan the intercept of the part (Eq 1 predicted forward).
     Plan {
+        /// Where the arm is, at rest, when the plan starts.
         start: TaskState<f32>,
+        /// The joint angles there (the inverse kinematics' seed).
         q_start: JointVector<f32>,
+        /// The conveyor as the plan sees it.
         conveyor: ConveyorSnapshot,
+        /// The calibration the plan uses (Eq 1's `base_from_disc` and `p_rotating`).
         estimate: CellEstimate,
     },
 }
@@ -54,6 +59,7 @@ pub struct JobTicket {
     pub session: u32,
     /// Which request of that session; a cancelled job's late result is ignored.
     pub job_id: u32,
+    /// What to compute.
     pub request: JobRequest,
 }
 
@@ -61,21 +67,28 @@ pub struct JobTicket {
 #[derive(Debug, Clone, PartialEq)]
 #[allow(clippy::large_enum_variant)]
 pub enum JobOutcome {
+    /// An estimate and, if preliminary, the poses to show the marks at; or why it was
+    /// refused.
     Estimate(Result<(CellEstimate, Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>), FaultCause>),
+    /// The intercept and the conveyor's prediction it assumed; or why none exists.
     Plan(Result<(InterceptPlan<f32>, Prediction), PlanError>),
 }
 
 /// A job's result, with its ticket's identity.
 #[derive(Debug, Clone, PartialEq)]
 pub struct JobResult {
+    /// The session of the ticket answered.
     pub session: u32,
+    /// The job of the ticket answered.
     pub job_id: u32,
+    /// What came of it.
     pub outcome: JobOutcome,
 }
 
 /// From the control loop to the frame pairer: the encoders at a camera trigger.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TriggerRecord {
+    /// The encoders at the trigger.
     pub latched: LatchedSample,
     /// Controller time of the first sensor sample (observation time zero).
     pub start_time_us: u64,
@@ -98,7 +111,9 @@ pub enum ControlEvent {
 #[derive(Debug, Clone, PartialEq)]
 #[allow(clippy::large_enum_variant)]
 pub enum WorkItem {
+    /// A paired frame for the calibrator.
     Observation(ObservationFrame),
+    /// A job to compute.
     Job(JobTicket),
 }
 
@@ -109,7 +124,9 @@ pub enum WorkItem {
 pub struct DiscView {
     /// The conveyor angle at the trigger (unwrapped, from the first sample).
     pub theta: f32,
+    /// Where the camera saw the disc's centre, if it did.
     pub centre_px: Option<[f32; 2]>,
+    /// Where the camera saw the reference mark, if it did.
     pub reference_px: Option<[f32; 2]>,
 }
 
@@ -134,7 +151,9 @@ pub enum VisionNews {
     /// marks it saw were (from the encoders latched at the trigger), if it
     /// saw them; `view` what it saw of the disc, for the view monitor.
     Paired {
+        /// Where the marks were, if the camera saw them.
         sighting: Option<Sighting>,
+        /// What it saw of the disc.
         view: Option<DiscView>,
     },
     /// A frame matched no pending trigger (late, repeated or unknown).

@@ -126,8 +126,11 @@ pub fn calibration_poses(
 /// The conveyor as the plan saw it: angle, speed, and the delay before the plan starts.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ConveyorSnapshot {
+    /// The conveyor angle, rad.
     pub theta: f32,
+    /// The conveyor speed, rad/s.
     pub omega: f32,
+    /// The delay before the plan starts, s.
     pub lead_s: f32,
 }
 

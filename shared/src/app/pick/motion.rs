@@ -17,20 +17,29 @@ use crate::planning::{
 /// extrapolated at constant speed from the plan's start.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Prediction {
+    /// The conveyor angle when the plan starts, rad.
     pub theta_at_start: f32,
+    /// The conveyor speed the plan assumes, rad/s.
     pub omega: f32,
 }
 
 /// The gripper's current task.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Motion {
+    /// At rest at this state.
     Hold(TaskState<f32>),
+    /// An arc round the base axis (see [`ArcMove`]).
     Arc {
+        /// The arc.
         path: ArcMove<f32>,
+        /// When it started, s.
         start_s: f32,
     },
+    /// A quintic between two task states (a lift, a stop).
     Quintic {
+        /// The quintic.
         path: InterceptPlan<f32>,
+        /// When it started, s.
         start_s: f32,
     },
     /// The intercept: the planned quintic plus the difference between the
@@ -38,13 +47,18 @@ pub enum Motion {
     /// from 0 to 1 over the plan, so the path ends exactly on the live part
     /// however the conveyor's speed wandered meanwhile.
     Intercept {
+        /// The planned quintic.
         plan: InterceptPlan<f32>,
+        /// When it started, s.
         start_s: f32,
+        /// The conveyor's motion the plan assumed.
         prediction: Prediction,
     },
     /// Riding with the part, `offset` above its grasp point (a quintic in height).
     Follow {
+        /// The height above the grasp point over time.
         offset: Quintic<f32, 1>,
+        /// When it started, s.
         start_s: f32,
     },
 }
@@ -80,6 +94,7 @@ impl Motion {
         }
     }
 
+    /// When the motion started, if it is a timed one.
     pub fn start_s(&self) -> Option<f32> {
         match self {
             Self::Hold(_) => None,

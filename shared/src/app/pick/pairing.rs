@@ -54,7 +54,9 @@ pub struct FramePairer {
 /// worker when the frame may feed the calibrator.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Paired {
+    /// What the control loop hears of the frame.
     pub news: VisionNews,
+    /// The observation for the calibrator, when the frame may feed it.
     pub observation: Option<ObservationFrame>,
 }
 
@@ -67,6 +69,8 @@ impl FramePairer {
         )
     }
 
+    /// A pairer for a conveyor of `conveyor_counts_per_rev` and a part of
+    /// `part_feature_count` features.
     pub fn new(conveyor_counts_per_rev: u32, part_feature_count: usize) -> Self {
         let mut pairer = Self {
             latch: TriggerLatch::new(),

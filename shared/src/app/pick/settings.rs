@@ -10,6 +10,7 @@ pub struct PickSettings {
     /// the marks to the camera before anything is known. The height is the
     /// cell's travel height: above any disc and part the robot can reach.
     pub search_radius_m: f32,
+    /// The sweep's grasp-point height (see `search_radius_m`).
     pub search_tool_height_m: f32,
     /// The sweep turns the arm this far either side of its start azimuth.
     pub search_half_sweep_rad: f32,
@@ -19,21 +20,30 @@ pub struct PickSettings {
     /// the robot-to-disc calibration, highest first (the arm descends in steps
     /// the camera confirms: `max_descent_step_m`), and how long each pose is held.
     pub calibration_heights_m: [f32; 3],
+    /// How long each calibration pose is held (see `calibration_heights_m`).
     pub calibration_dwell_s: f32,
     /// Hover height above the grasp point while intercepting and tracking.
     pub hover_height_m: f32,
     /// How long tracking must hold the gripper within `track_tolerance_m`
     /// before descending, and the most time it may take.
     pub track_settle_s: f32,
+    /// How close tracking must hold the gripper (see `track_settle_s`).
     pub track_tolerance_m: f32,
+    /// The most time tracking may take (see `track_settle_s`).
     pub track_timeout_s: f32,
+    /// The descent from hover height to the grasp point, s.
     pub descend_s: f32,
+    /// How long the gripper settles at the grasp point before closing, s.
     pub grasp_settle_s: f32,
+    /// How long the gripper takes to close, s.
     pub grasp_close_s: f32,
+    /// How far the part is lifted off the disc, m.
     pub lift_height_m: f32,
+    /// How long the lift takes, s.
     pub lift_s: f32,
     /// Height above the drop-off from which the part is lowered, and the release dwell.
     pub drop_hover_m: f32,
+    /// How long the gripper stays open over the drop-off (see `drop_hover_m`).
     pub release_s: f32,
     /// The part must stay reachable this long after the intercept (track, descend, grasp, lift).
     pub grasp_window_s: f32,
@@ -45,17 +55,21 @@ pub struct PickSettings {
     /// result is used (results are applied at this fixed delay, so a run is
     /// deterministic whatever the processor's speed).
     pub estimate_budget_s: f32,
+    /// The same for an intercept plan (see `estimate_budget_s`).
     pub plan_budget_s: f32,
     /// A calibration is refused when its 1-sigma part or base position exceeds these.
     pub max_part_sigma_m: f32,
+    /// The base position's limit (see `max_part_sigma_m`).
     pub max_base_sigma_m: f32,
     /// Above this 1-sigma of the base position the marks are shown once more
     /// (at most `max_calibration_rounds` rounds in all) before the pick.
     pub confident_base_sigma_m: f32,
+    /// The most calibration rounds (see `confident_base_sigma_m`).
     pub max_calibration_rounds: u8,
     /// Faults: no paired camera frame for this long while vision is needed; the
     /// gripper this far from its reference.
     pub vision_stale_s: f32,
+    /// The tracking fault's limit (see `vision_stale_s`).
     pub tracking_error_limit_m: f32,
     /// Longest gap between two control periods before the pick stops
     /// (ControlStall): a motion planned before the gap is not carried on.
@@ -83,24 +97,30 @@ pub struct PickSettings {
     /// fraction of a limit the pick stops along its path (JointOverspeed);
     /// beyond the second the joint brake takes over.
     pub overspeed_stop_factor: f32,
+    /// The joint brake's fraction of a speed limit (see `overspeed_stop_factor`).
     pub overspeed_brake_factor: f32,
     /// While following the part, the flange's reference must stay within this
     /// fraction of the arm's stretch (plans keep to 0.93) and this far from
     /// the base axis (the shoulder singularity; plans keep 0.30 m).
     pub max_follow_stretch: f32,
+    /// The least distance from the base axis while following (see `max_follow_stretch`).
     pub min_follow_radius_m: f32,
     /// A controlled stop decelerates to rest over this time (rising `stop_rise_m`
     /// when near the part), then holds.
     pub stop_s: f32,
+    /// How far a stop near the part rises (see `stop_s`).
     pub stop_rise_m: f32,
     /// A stop starts from at most these speeds and acceleration (the pick
     /// never commands more), whatever the reference said.
     pub stop_max_speed_m_s: f32,
+    /// A stop's largest starting yaw rate (see `stop_max_speed_m_s`).
     pub stop_max_yaw_rate_rad_s: f32,
+    /// A stop's largest starting acceleration (see `stop_max_speed_m_s`).
     pub stop_max_acceleration_m_s2: f32,
     /// A reference may move at most these speeds' worth per period plus these
     /// margins; beyond, it leapt (ReferenceJump).
     pub reference_step_m: f32,
+    /// The yaw margin a period (see `reference_step_m`).
     pub reference_step_rad: f32,
     /// Extra time a motion phase may take beyond its planned duration.
     pub motion_timeout_margin_s: f32,
@@ -119,7 +139,10 @@ pub struct PickSettings {
     /// back to where the part was located from, and a new one planned once
     /// the conveyor is steady.
     pub max_intercept_correction_m: f32,
+    /// The conveyor speed change the correction absorbs, rad/s (see
+    /// `max_intercept_correction_m`).
     pub max_conveyor_speed_change_rad_s: f32,
+    /// The same as a fraction of the plan's speed (see `max_intercept_correction_m`).
     pub max_conveyor_speed_change_fraction: f32,
     /// Intercepts planned for one part before the pick gives up (PartUnreachable).
     pub max_intercept_attempts: u8,

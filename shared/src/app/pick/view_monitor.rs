@@ -74,6 +74,7 @@ impl Projector {
 /// What the last checked frame showed (for telemetry and tests).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct ViewResiduals {
+    /// How far the disc's centre was from where the calibration puts it, pixels.
     pub centre_px: f32,
     /// Across the reference mark's circle.
     pub reference_normal_px: f32,
@@ -96,6 +97,7 @@ pub struct ViewMonitor {
 }
 
 impl ViewMonitor {
+    /// A monitor with `limits`, not armed yet.
     pub fn new(limits: ViewLimits) -> Self {
         Self {
             limits,
@@ -131,10 +133,12 @@ impl ViewMonitor {
         });
     }
 
+    /// What the last checked frame showed.
     pub fn last(&self) -> ViewResiduals {
         self.last
     }
 
+    /// Frames checked since it was armed.
     pub fn frames_checked(&self) -> u32 {
         self.frames_checked
     }

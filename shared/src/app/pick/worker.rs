@@ -6,6 +6,7 @@
 
 use heapless::Vec;
 
+use super::build::controller_model;
 use super::cell::{Cell, ConfigError};
 use super::estimate::CellEstimate;
 use super::handoff::{JobOutcome, JobRequest, JobResult, JobTicket, VisionNews, WorkItem};
@@ -14,7 +15,7 @@ use super::jobs::{
 };
 use super::motion::Prediction;
 use super::settings::{at_most, PickSettings};
-use super::{controller_model, PickCalibrator};
+use super::PickCalibrator;
 use crate::calibration::CalibrationError;
 use crate::observation::ObservationFrame;
 use crate::planning::{ArcPoint, InterceptPlan, PlanError, TaskState};

@@ -1,0 +1,191 @@
+//! Where each step of the pick takes the arm: the search sweep at travel
+//! height, the calibration poses, the way back to where the part was located
+//! from, the lift, the transfer to the drop-off and the way home. Every arc
+//! goes round the base axis on the start's side (never through the back of
+//! the robot), with the wrist turned as at the start.
+
+use nalgebra::Vector3;
+
+use super::jobs::yaw_at_azimuth;
+use super::motion::{height_profile, Motion};
+use super::settings::PickSettings;
+use super::step::Step;
+use crate::angle::wrap_pi;
+use crate::app::tool::TOOL_LENGTH_M;
+use crate::planning::{ArcLimits, ArcMove, ArcPoint, InterceptPlan, PlanError, TaskState};
+
+/// The places the pick's route is planned from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Route {
+    /// Where the arm stood at the first sample (and returns to).
+    start_pose: ArcPoint<f32>,
+    /// The flange height of the carry to the drop-off and back.
+    transfer_z: f32,
+    /// Where the arm stood when the part was first located (the last
+    /// calibration pose): an abandoned intercept returns there to plan again.
+    locate_pose: Option<ArcPoint<f32>>,
+}
+
+/// The travel height of the flange: the search's tool height over the tool.
+pub(super) fn travel_z(settings: &PickSettings) -> f32 {
+    settings.search_tool_height_m + TOOL_LENGTH_M as f32
+}
+
+impl Route {
+    /// No start yet.
+    pub(super) fn new() -> Self {
+        Self {
+            start_pose: ArcPoint {
+                radius_m: 0.0,
+                azimuth_rad: 0.0,
+                z_m: 0.0,
+                yaw_rad: 0.0,
+            },
+            transfer_z: 0.0,
+            locate_pose: None,
+        }
+    }
+
+    /// The arm starts at `start_pose`.
+    pub(super) fn start_from(&mut self, start_pose: ArcPoint<f32>) {
+        self.start_pose = start_pose;
+    }
+
+    /// Where the arm started.
+    pub(super) fn start_pose(&self) -> ArcPoint<f32> {
+        self.start_pose
+    }
+
+    /// An azimuth equivalent to `azimuth` within half a turn of the start's, so
+    /// arcs never swing the waist through the back of the robot.
+    pub(super) fn azimuth_near_start(&self, azimuth: f32) -> f32 {
+        self.start_pose.azimuth_rad + wrap_pi(azimuth - self.start_pose.azimuth_rad)
+    }
+
+    /// `target` with its azimuth on the start's side.
+    pub(super) fn near_start(&self, mut target: ArcPoint<f32>) -> ArcPoint<f32> {
+        target.azimuth_rad = self.azimuth_near_start(target.azimuth_rad);
+        target
+    }
+
+    /// An arc from `from` (at rest) to `target`, starting at `now_s`.
+    pub(super) fn arc(
+        &self,
+        from: &TaskState<f32>,
+        target: ArcPoint<f32>,
+        now_s: f32,
+    ) -> Result<Motion, PlanError> {
+        let mut start = ArcPoint::from_position(&from.position, from.yaw);
+        start.azimuth_rad = self.azimuth_near_start(start.azimuth_rad);
+        let path = ArcMove::new(&start, &target, &ArcLimits::default())?;
+        Ok(Motion::Arc {
+            path,
+            start_s: now_s,
+        })
+    }
+
+    /// The search's point at `azimuth`: on the search radius at travel
+    /// height, the wrist as at the start.
+    pub(super) fn search_point(&self, azimuth: f32, settings: &PickSettings) -> ArcPoint<f32> {
+        ArcPoint {
+            radius_m: settings.search_radius_m,
+            azimuth_rad: azimuth,
+            z_m: travel_z(settings),
+            yaw_rad: yaw_at_azimuth(&self.start_pose, azimuth),
+        }
+    }
+
+    /// One end of the search sweep: `side` is -1 (the approach) or 1 (the sweep).
+    pub(super) fn sweep_end(&self, side: f32, settings: &PickSettings) -> ArcPoint<f32> {
+        let azimuth = self.start_pose.azimuth_rad + side * settings.search_half_sweep_rad;
+        self.search_point(azimuth, settings)
+    }
+
+    /// The flange arc point over `tool` (a grasp-point position), wrist as at the start.
+    pub(super) fn over(&self, tool: &Vector3<f32>, z_flange: f32) -> ArcPoint<f32> {
+        let mut point = ArcPoint::from_position(tool, 0.0);
+        point.azimuth_rad = self.azimuth_near_start(point.azimuth_rad);
+        point.yaw_rad = yaw_at_azimuth(&self.start_pose, point.azimuth_rad);
+        point.z_m = z_flange;
+        point
+    }
+
+    /// The arm first locates the part from `reference`, unless it already has.
+    pub(super) fn locating_from(&mut self, reference: &TaskState<f32>) {
+        if self.locate_pose.is_none() {
+            self.locate_pose = Some(ArcPoint::from_position(&reference.position, reference.yaw));
+        }
+    }
+
+    /// Where the part was first located from, on the start's side.
+    pub(super) fn locate_pose(&self) -> Option<ArcPoint<f32>> {
+        self.locate_pose.map(|target| self.near_start(target))
+    }
+
+    /// Over the drop-off at the carry height: the flange's height now
+    /// (`flange_z`) or the drop-off's hover height, whichever is higher.
+    pub(super) fn carry_to(
+        &mut self,
+        drop_off: &Vector3<f32>,
+        flange_z: f32,
+        settings: &PickSettings,
+    ) -> ArcPoint<f32> {
+        let drop_hover_z = drop_off.z + TOOL_LENGTH_M as f32 + settings.drop_hover_m;
+        self.transfer_z = flange_z.max(drop_hover_z);
+        self.over(drop_off, self.transfer_z)
+    }
+
+    /// Down onto the drop-off, the part's grasp point on it.
+    pub(super) fn lower_onto(&self, drop_off: &Vector3<f32>) -> ArcPoint<f32> {
+        self.over(drop_off, drop_off.z + TOOL_LENGTH_M as f32)
+    }
+
+    /// Back up over the drop-off to the carry height.
+    pub(super) fn raise_from(&self, drop_off: &Vector3<f32>) -> ArcPoint<f32> {
+        self.over(drop_off, self.transfer_z)
+    }
+
+    /// Home: the start pose.
+    pub(super) fn home(&self) -> ArcPoint<f32> {
+        self.near_start(self.start_pose)
+    }
+}
+
+/// Riding with the part for `step` (track at hover height, descend to the
+/// grasp point, settle there), from `now_s`.
+pub(super) fn follow(step: Step, settings: &PickSettings, now_s: f32) -> Result<Motion, PlanError> {
+    let (from, to, duration) = match step {
+        Step::Descend => (settings.hover_height_m, 0.0, settings.descend_s),
+        Step::Track => (settings.hover_height_m, settings.hover_height_m, 1.0),
+        _ => (0.0, 0.0, 1.0),
+    };
+    match height_profile(from, to, duration) {
+        Some(offset) => Ok(Motion::Follow {
+            offset,
+            start_s: now_s,
+        }),
+        None => Err(PlanError::InvalidDuration),
+    }
+}
+
+/// Lifting the part off the disc from `start`: up by `lift_height_m` over
+/// `lift_s`, carried on by half the lift at the speed it had, to rest.
+pub(super) fn lift(
+    start: &TaskState<f32>,
+    settings: &PickSettings,
+    now_s: f32,
+) -> Result<Motion, PlanError> {
+    let mut end = TaskState::at_rest(
+        start.position
+            + start.velocity * (0.5 * settings.lift_s)
+            + Vector3::new(0.0, 0.0, settings.lift_height_m),
+        start.yaw,
+    );
+    end.yaw = start.yaw + start.yaw_rate * (0.5 * settings.lift_s);
+    InterceptPlan::between(start, &end, settings.lift_s, core::f32::consts::PI).map(|path| {
+        Motion::Quintic {
+            path,
+            start_s: now_s,
+        }
+    })
+}

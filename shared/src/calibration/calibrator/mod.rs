@@ -1,0 +1,250 @@
+//! The fixed-memory incremental self-calibrator: absorbs frames one at a time and
+//! produces the paper's estimate (Sections 2 and 3) or the refined maximum-likelihood one.
+//!
+//! One stage a module:
+//! - `admit`: admitting the header, the configuration and each frame (the contract's rules).
+//! - `track`: the reference track and the centre's image (Steps 2 and 3), checked and robust.
+//! - `paper`: the paper's closed-form estimate (Eq 8 with two frames, Eq 15 with one pose).
+//! - `initial`: the initial estimate the refinement starts from (every frame, every sighting).
+//! - here: the store and the driver, [`SelfCalibrator`] itself: it keeps what was
+//!   admitted, runs the stages and the refinement, and writes the result.
+
+mod admit;
+mod initial;
+mod paper;
+mod track;
+
+pub use admit::{MAX_CONVEYOR_ANGLE_RAD, MAX_EFFECTOR_COORDINATE_M};
+
+use heapless::Vec as HVec;
+use nalgebra::{Vector2, Vector3};
+
+use super::config::CalibrationConfig;
+use super::conic::{Conic, ConicFit};
+use super::error::CalibrationError;
+use super::frame_store::{FrameStore, FULL_FRAME_PIXELS};
+use super::model::WorkcellModel;
+use super::pinhole::Pinhole;
+use super::records::EffectorRecord;
+use super::refine::{refine, Problem};
+use super::store::ThinningStore;
+use super::uncertainty::EstimateUncertainty;
+use crate::angle::wrap_pi;
+use crate::observation::{
+    BaseFromDisc, CalibrationQuality, CalibrationResult, CameraEstimate, LogHeader,
+    ObservationFrame, PartEstimate, RigidTransform, MAX_PART_FEATURES,
+};
+
+/// Fixed-memory incremental estimator; `FRAMES` and `EFFECTOR_FRAMES` bound the stored
+/// observations (evenly thinned when more arrive; see [`ThinningStore`]), and
+/// `PIXELS_PER_FRAME` is the frames' pixel budget (see [`FrameStore`]: with fewer than
+/// `2 + part_feature_count` pixels a frame, fewer than `FRAMES` frames fit).
+///
+/// Memory: `size_of` is `512 + (9 + 8 * PIXELS_PER_FRAME) * FRAMES + 40 * EFFECTOR_FRAMES`
+/// bytes on x86-64 (a frame is an f64 angle, a presence byte and f32 pixels; an
+/// [`EffectorRecord`] 40 B; the rest is the header, config, the 6x6 RLS conic state and
+/// counters), a little less on thumbv7em where `usize` is 4 B. Measured by the tests
+/// `calibrator_sizes_are_documented` and `pick_calibrator_packs_its_frames`:
+/// [`FirmwareCalibrator`] 9 696 B, [`HostCalibrator`] 101 888 B, the pick's 18 176 B.
+/// [`SelfCalibrator::estimate`] additionally needs stack for the refinement's
+/// arrowhead normal equations (2.8 KiB of blocks, see [`super::normal_blocks`]),
+/// independent of the instance size.
+#[derive(Debug, Clone)]
+pub struct SelfCalibrator<
+    const FRAMES: usize,
+    const EFFECTOR_FRAMES: usize,
+    const PIXELS_PER_FRAME: usize = FULL_FRAME_PIXELS,
+> {
+    header: LogHeader,
+    config: CalibrationConfig,
+    pinhole: Pinhole,
+    /// Step 2's recursive least-squares conic, fed with every reference detection.
+    conic: ConicFit,
+    frames: FrameStore<FRAMES, PIXELS_PER_FRAME>,
+    effectors: ThinningStore<EffectorRecord, EFFECTOR_FRAMES>,
+    /// Frames offered to `push` (accepted or not): numbers frames in errors.
+    offered: u32,
+    /// Accepted frames with at least one detection.
+    frames_used: u32,
+    last_t_s: Option<f64>,
+}
+
+/// A small instance: 96 frames, 16 effector sightings (9 696 B on x86-64).
+pub type FirmwareCalibrator = SelfCalibrator<96, 16>;
+/// The host's instance: 1024 frames, 256 effector sightings (101 888 B on x86-64).
+pub type HostCalibrator = SelfCalibrator<1024, 256>;
+
+impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: usize>
+    SelfCalibrator<FRAMES, EFFECTOR_FRAMES, PIXELS_PER_FRAME>
+{
+    /// A calibrator for the log `header` with `config`; refuses a header or configuration
+    /// no workcell fits (see `admit`).
+    pub fn new(header: &LogHeader, config: CalibrationConfig) -> Result<Self, CalibrationError> {
+        admit::check_header(header)?;
+        admit::check_config(&config)?;
+        Ok(Self {
+            header: *header,
+            config,
+            pinhole: Pinhole::new(&header.camera),
+            conic: ConicFit::new(),
+            frames: FrameStore::new(header.part_feature_count),
+            effectors: ThinningStore::new(),
+            offered: 0,
+            frames_used: 0,
+            last_t_s: None,
+        })
+    }
+
+    /// Validate and absorb one frame (RLS conic update etc.); a frame that is invalid
+    /// (NaN, wrong feature count, time going backwards, coinciding effector points) is
+    /// rejected with an error and leaves the estimator's observations unchanged (only the
+    /// count of offered frames, which numbers frames in errors, advances).
+    pub fn push(&mut self, frame: &ObservationFrame) -> Result<(), CalibrationError> {
+        let index = self.offered;
+        self.offered = self.offered.saturating_add(1);
+        let validated = self.validate(index, frame)?;
+        let record = validated.record(self.header.part_feature_count);
+        self.last_t_s = Some(frame.t_s);
+        if let Some(reference) = frame.reference_px {
+            let [u, v] = reference;
+            self.conic.add(self.pinhole.ray(Vector2::new(u, v)), 1.0);
+        }
+        let detected =
+            record.centre.is_some() || record.reference.is_some() || record.part.is_some();
+        if let Some(sighting) = &frame.effector {
+            self.effectors
+                .offer(EffectorRecord::from_sighting(sighting));
+        }
+        if detected || frame.effector.is_some() {
+            self.frames_used = self.frames_used.saturating_add(1);
+        }
+        if detected {
+            self.frames.offer(&record);
+        }
+        Ok(())
+    }
+
+    /// Frames offered to `push` so far (accepted or rejected).
+    pub fn frames_offered(&self) -> u32 {
+        self.offered
+    }
+
+    /// The recursive least-squares conic of Step 2 over every reference detection so far.
+    pub fn conic(&self) -> Result<Conic, CalibrationError> {
+        self.conic.solve()
+    }
+
+    /// The refined (maximum-likelihood) estimate from everything absorbed so far.
+    pub fn estimate(&mut self) -> Result<CalibrationResult, CalibrationError> {
+        self.estimate_with_uncertainty().map(|(result, _)| result)
+    }
+
+    /// [`SelfCalibrator::estimate`] with the standard deviations of its parameters (from the
+    /// Gauss-Newton covariance at the optimum, scaled by the measured reprojection noise).
+    /// Out of line: the caller's frame lies under the bundle adjustment's (the
+    /// firmware's deepest stack), and this one's locals only have to.
+    #[inline(never)]
+    pub fn estimate_with_uncertainty(
+        &mut self,
+    ) -> Result<(CalibrationResult, EstimateUncertainty), CalibrationError> {
+        let initial = self.initial_model()?;
+        let problem = self.problem();
+        let refined = refine(&problem, initial, &self.config)?;
+        let uncertainty = refined
+            .covariance
+            .as_ref()
+            .map(EstimateUncertainty::from_covariance)
+            .ok_or(CalibrationError::NumericalFailure {
+                stage: "covariance of the estimate",
+            })?;
+        Ok((
+            self.result(&refined.model, refined.rms_px, refined.outliers),
+            uncertainty,
+        ))
+    }
+
+    fn problem(&self) -> Problem<'_> {
+        Problem {
+            pinhole: self.pinhole,
+            frames: self.frames.view(),
+            effectors: self.effectors.items(),
+            feature_count: self.header.part_feature_count,
+            reference_radius_m: self.header.reference_radius_m,
+            fix_base_height: self.config.disc_height_in_base_m.is_some(),
+        }
+    }
+
+    fn rms_reprojection(&self, model: &WorkcellModel) -> f64 {
+        let problem = self.problem();
+        let mut squares = 0.0;
+        let mut count = 0u32;
+        super::model::for_each_observation(
+            problem.frames,
+            problem.effectors,
+            problem.feature_count,
+            problem.reference_radius_m,
+            |observation| {
+                if let Some(r) = model.residual(&self.pinhole, observation) {
+                    squares += r.norm_squared();
+                    count += 1;
+                }
+            },
+        );
+        if count == 0 {
+            0.0
+        } else {
+            libm::sqrt(squares / f64::from(count))
+        }
+    }
+
+    fn result(&self, model: &WorkcellModel, rms_px: f64, outliers: u32) -> CalibrationResult {
+        let r = model.disc_from_camera.matrix();
+        let c = model.camera_centre_disc;
+        let mut features_m: HVec<[f64; 3], MAX_PART_FEATURES> = HVec::new();
+        let mut sum = Vector3::zeros();
+        for feature in model.features_rotating.iter().take(model.feature_count) {
+            // Cannot overflow: feature_count <= MAX_PART_FEATURES (checked in `new`).
+            let _ = features_m.push([feature.x, feature.y, feature.z]);
+            sum += feature;
+        }
+        let count = model.feature_count.max(1) as f64;
+        let position = sum / count;
+        let yaw = match (
+            model.features_rotating.first(),
+            model.features_rotating.get(1),
+        ) {
+            (Some(f0), Some(f1)) => libm::atan2(f1.y - f0.y, f1.x - f0.x),
+            _ => 0.0,
+        };
+        let t = model.base_translation;
+        CalibrationResult {
+            camera: CameraEstimate {
+                height_m: c.z,
+                disc_from_camera: RigidTransform {
+                    rotation: [
+                        [r.m11, r.m12, r.m13],
+                        [r.m21, r.m22, r.m23],
+                        [r.m31, r.m32, r.m33],
+                    ],
+                    translation_m: [c.x, c.y, c.z],
+                },
+            },
+            part: PartEstimate {
+                features_m,
+                position_m: [position.x, position.y, position.z],
+                yaw_rad: yaw,
+            },
+            base_from_disc: BaseFromDisc {
+                yaw_rad: wrap_pi(model.base_yaw),
+                translation_m: [t.x, t.y, t.z],
+            },
+            quality: CalibrationQuality {
+                frames_used: self.frames_used,
+                rms_reprojection_px: rms_px,
+                effector_frames_used: u32::try_from(self.effectors.items().len())
+                    .unwrap_or(u32::MAX),
+                outliers_rejected: outliers,
+            },
+        }
+    }
+}
