@@ -14,7 +14,7 @@ use shared::observation::{CalibrationResult, LogHeader, ObservationFrame};
 
 use crate::accuracy::metrics::{compare, ErrorMetrics, METRIC_COLUMNS};
 use crate::log::{open_log, LogError, ObservationLog};
-use crate::workcell::read_truth_file;
+use crate::recording::read_truth_file;
 
 /// Calibrate camera, part and robot base from an observation log.
 #[derive(clap::Args, Debug)]
@@ -39,7 +39,7 @@ pub struct CalibrateArgs {
 /// is warned, metres. On the paper's slanted camera (10 to 35 degrees) the part
 /// position's sigma is about a millimetre; above 5 mm the estimate misses the
 /// issue's 2 mm target by far, which in practice means the camera looks down the
-/// disc's axis (see `workcell::generator`).
+/// disc's axis (see `world::generator`).
 pub const PART_SIGMA_WARNING_M: f64 = 0.005;
 
 /// One-sigma of the part's height and of its position (root-sum-square of the

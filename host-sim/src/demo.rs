@@ -24,7 +24,8 @@ use crate::accuracy::metrics::{compare, ErrorMetrics};
 use crate::calibrate_cmd::{calibrate_log, part_height_warning};
 use crate::link::check::Session;
 use crate::link::InProcessLink;
-use crate::workcell::{simulate, Scenario};
+use crate::recording::simulate;
+use crate::scenario::Scenario;
 
 /// Options of the default run.
 #[derive(Args, Debug, Clone)]

@@ -12,7 +12,7 @@ use host_sim::link;
 use host_sim::pick::command::{run_pick_command, PickArgs};
 use host_sim::pick::faults::{run_fault_campaign, FaultCampaignArgs};
 use host_sim::pick::montecarlo::{run_montecarlo, MonteCarloArgs};
-use host_sim::workcell::command::{run_record, RecordArgs};
+use host_sim::recording::command::{run_record, RecordArgs};
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
 #[derive(Parser, Debug)]

@@ -9,7 +9,7 @@ use shared::calibration::CalibrationConfig;
 
 use super::harness::{plan_trials, run_trials, HarnessOptions};
 use super::report::{markdown, summarise, write_outputs};
-use crate::workcell::{Scenario, SCENARIO_NAMES};
+use crate::scenario::{Scenario, SCENARIO_NAMES};
 
 /// Monte-Carlo accuracy of the self-calibration over random workcells.
 #[derive(clap::Args, Debug)]

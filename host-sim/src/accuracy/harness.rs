@@ -12,7 +12,8 @@ use shared::observation::CalibrationResult;
 
 use super::metrics::{compare, ErrorMetrics};
 use crate::calibrate_cmd::{calibrate_log, part_sigmas_m};
-use crate::workcell::{simulate, Scenario};
+use crate::recording::simulate;
+use crate::scenario::Scenario;
 
 /// Which estimate of a trial.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]

@@ -11,10 +11,10 @@ use clap::Args;
 use super::record::PickRun;
 use super::report::{link_line, results_table, summary_line, write_run_outputs};
 use super::runner::run_pick;
-use super::scenario::{PickExperiment, PickScenarioFile};
 use crate::link::{
     ByteLink, FramedLink, InProcessLink, NoiseConfig, NoisyLink, SerialPortLink, TcpLink,
 };
+use crate::scenario::pick::{PickExperiment, PickScenarioFile};
 
 /// Options of the default run.
 #[derive(Args, Debug, Clone)]

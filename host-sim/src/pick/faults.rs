@@ -25,10 +25,10 @@ use super::montecarlo::trial_seed;
 use super::record::{PickResult, PickRun};
 use super::report::result_name;
 use super::runner::{run_pick_in_process, run_pick_in_process_noisy};
-use super::scenario::{
+use crate::link::NoiseConfig;
+use crate::scenario::pick::{
     CameraBump, FaultWindow, MissedCounts, PickExperiment, PickScenarioFile, SpeedChange,
 };
-use crate::link::NoiseConfig;
 
 /// The gripper strikes the disc if its grasp point comes lower than this above
 /// the disc's surface while not holding the part (parts are 40 mm or more high,

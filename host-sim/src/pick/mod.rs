@@ -1,14 +1,11 @@
-//! The full pick in the simulated workcell: the world (plant, conveyor, camera,
-//! gripper) against the controller application over the serial protocol.
+//! The full pick in the simulated workcell: the world ([`crate::world`])
+//! against the controller application over the serial protocol.
 //!
-//! - [`scenario`]: the scenario file (TOML) and its embedded default.
-//! - [`world`], [`camera_sim`]: the simulated workcell.
 //! - [`runner`]: one pick in lock step over any link.
 //! - [`record`]: what a pick leaves behind; [`report`], [`plots`]: tables, CSV and PNG.
 //! - [`command`]: `host-sim run`; [`montecarlo`]: `host-sim montecarlo`;
 //!   [`faults`]: `host-sim faults` (the pick under injected faults).
 
-pub mod camera_sim;
 pub mod command;
 pub mod faults;
 pub mod montecarlo;
@@ -16,5 +13,3 @@ pub mod plots;
 pub mod record;
 pub mod report;
 pub mod runner;
-pub mod scenario;
-pub mod world;

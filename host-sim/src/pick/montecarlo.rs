@@ -15,7 +15,7 @@ use serde::Serialize;
 
 use super::record::{PickResult, PickRun};
 use super::runner::run_pick_in_process;
-use super::scenario::{PickExperiment, PickScenarioFile};
+use crate::scenario::pick::{PickExperiment, PickScenarioFile};
 
 /// Options of `host-sim montecarlo`.
 #[derive(Args, Debug, Clone)]

@@ -481,7 +481,8 @@ pub fn link_line(run: &PickRun) -> Option<String> {
 /// the controller.
 #[doc(hidden)]
 pub fn synthetic_run(experiment: &str, records: usize) -> PickRun {
-    use super::record::{CellLayout, PhaseEvent};
+    use super::record::PhaseEvent;
+    use crate::world::CellLayout;
     use shared::protocol::CalibrationReport;
 
     let period_s = 0.01;

@@ -19,10 +19,10 @@ use shared::protocol::{
 use super::record::{
     CalibrationRecord, GraspRecord, LinkRecord, PhaseEvent, PickResult, PickRun, TickRecord,
 };
-use super::scenario::PickExperiment;
-use super::world::{World, WorldTruth};
+use crate::geometry::angle_distance;
 use crate::link::{ByteLink, FramedLink, LinkError, NoiseConfig, NoisyLink};
-use crate::workcell::geometry::angle_distance;
+use crate::scenario::pick::PickExperiment;
+use crate::world::{World, WorldTruth};
 
 /// Seconds the run goes on after the controller reports Done or Faulted, to
 /// see the arm come to rest and stay there.

@@ -13,14 +13,18 @@ use shared::observation::{
     CalibrationQuality, EffectorSighting, ObservationFrame, PixelPoint, MAX_PART_FEATURES,
 };
 
-use super::camera::PinholeCamera;
-use super::effector::{EffectorPose, EffectorSampler};
-use super::generator::{random_workcell, GenerationError};
-use super::geometry::to_array;
-use super::model::Workcell;
-use super::scenario::Scenario;
-use super::truth::TruthFile;
+use crate::geometry::to_array;
 use crate::log::ObservationLog;
+use crate::scenario::recording::Scenario;
+use crate::world::camera::PinholeCamera;
+use crate::world::effector::{EffectorPose, EffectorSampler};
+use crate::world::generator::{random_workcell, GenerationError};
+use crate::world::workcell::Workcell;
+
+pub mod command;
+pub mod truth;
+
+pub use truth::{read_truth_file, truth_path_for, write_truth_file, TruthFile};
 
 /// Attempts at a tool pose whose noisy marks both land in the image.
 const EFFECTOR_POSE_ATTEMPTS: usize = 100;

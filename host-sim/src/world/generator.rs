@@ -47,16 +47,13 @@ use rand::{Rng, RngExt};
 use shared::observation::CameraIntrinsics;
 
 use super::camera::PinholeCamera;
+use super::dimensions::{DISC_RADIUS_M, SHOULDER_HEIGHT_M};
 use super::effector::EffectorSampler;
-use super::model::Workcell;
-use super::scenario::{FeatureHeights, Scenario};
+use super::workcell::Workcell;
+use crate::scenario::recording::{FeatureHeights, Scenario, CAMERA_MAX_TILT_DEG};
 
 pub const IMAGE_SIDE_PX: u32 = 256;
-pub const DISC_RADIUS_M: f64 = 0.45;
 pub const CAMERA_HEIGHT_RANGE_M: (f64, f64) = (1.8, 3.0);
-/// Largest camera tilt any scenario may ask for, degrees: beyond it the disc is
-/// seen too obliquely for the rim-fill rule above.
-pub const CAMERA_MAX_TILT_DEG: f64 = 35.0;
 pub const CAMERA_AIM_OFFSET_M: f64 = 0.1;
 pub const DISC_RIM_FILL_RANGE: (f64, f64) = (0.55, 0.80);
 /// Pixels the disc rim keeps from the image border.
@@ -64,8 +61,6 @@ pub const RIM_MARGIN_PX: f64 = 2.0;
 pub const REFERENCE_RADIUS_RANGE_M: (f64, f64) = (0.35, 0.43);
 pub const PART_CENTRE_RADIUS_RANGE_M: (f64, f64) = (0.10, 0.30);
 pub const FEATURE_RADIUS_RANGE_M: (f64, f64) = (0.03, 0.06);
-/// PUMA 560 shoulder height in the base frame: d1 of `puma560-model.md`.
-pub const SHOULDER_HEIGHT_M: f64 = 0.67183;
 
 const MAX_WORKCELL_ATTEMPTS: usize = 100;
 

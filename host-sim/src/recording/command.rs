@@ -4,10 +4,10 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use super::record::simulate;
-use super::scenario::{Scenario, SCENARIO_NAMES};
+use super::simulate;
 use super::truth::{truth_path_for, write_truth_file};
 use crate::log::write_log_file;
+use crate::scenario::recording::{Scenario, SCENARIO_NAMES};
 
 /// Record a synthetic observation log from a random workcell (plus LOG.truth.json beside it).
 #[derive(clap::Args, Debug)]
