@@ -6,7 +6,7 @@ use std::hint::black_box;
 use std::io::Cursor;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use host_sim::calibrate_cmd::calibrate_log;
+use host_sim::calibration::calibrate_log;
 use host_sim::log::{read_log, write_log};
 use host_sim::recording::simulate;
 use host_sim::scenario::Scenario;

@@ -1,8 +1,8 @@
 //! `host-sim` library: everything behind the `host-sim` binary's subcommands.
 
 pub mod accuracy;
-pub mod calibrate_cmd;
-pub mod demo;
+pub mod calibration;
+pub mod commands;
 pub mod geometry;
 pub mod link;
 pub mod log;

@@ -11,7 +11,7 @@ use shared::calibration::{CalibrationConfig, CalibrationError};
 use shared::observation::CalibrationResult;
 
 use super::metrics::{compare, ErrorMetrics};
-use crate::calibrate_cmd::{calibrate_log, part_sigmas_m};
+use crate::calibration::{calibrate_log, part_sigmas_m};
 use crate::recording::simulate;
 use crate::scenario::Scenario;
 

@@ -1,7 +1,6 @@
 //! Seeded Monte-Carlo accuracy runs of the self-calibration over random
 //! workcells, with the paper's two-frame method beside the refined estimate.
 
-pub mod command;
 pub mod harness;
 pub mod metrics;
 pub mod report;

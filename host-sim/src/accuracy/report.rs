@@ -12,7 +12,7 @@ use serde::Serialize;
 use super::harness::{Method, TrialOutcome};
 use super::metrics::{ErrorMetrics, METRIC_COLUMNS};
 use super::stats::{median, percentile};
-use crate::calibrate_cmd::PART_SIGMA_WARNING_M;
+use crate::calibration::PART_SIGMA_WARNING_M;
 
 #[derive(Debug, Clone, Serialize)]
 pub struct MetricSummary {

@@ -3,10 +3,9 @@
 //!
 //! - [`runner`]: one pick in lock step over any link.
 //! - [`record`]: what a pick leaves behind; [`report`], [`plots`]: tables, CSV and PNG.
-//! - [`command`]: `host-sim run`; [`montecarlo`]: `host-sim montecarlo`;
-//!   [`faults`]: `host-sim faults` (the pick under injected faults).
+//! - [`montecarlo`]: many seeded picks over random workcells and their statistics.
+//! - [`faults`]: the pick under injected faults and its safety invariants.
 
-pub mod command;
 pub mod faults;
 pub mod montecarlo;
 pub mod plots;

@@ -1,7 +1,8 @@
 //! Recording a synthetic observation log from a random workcell: the images of
 //! the disc centre, the reference mark, the part's features and (in a few frames)
 //! two end-effector marks, with pixel noise, dropouts and gross outliers as the
-//! scenario says. Detections outside the image (contract rule) are null.
+//! scenario says. Detections outside the image (contract rule) are null. The
+//! ground truth goes beside the log ([`truth`]).
 
 use std::f64::consts::TAU;
 
@@ -21,7 +22,6 @@ use crate::world::effector::{EffectorPose, EffectorSampler};
 use crate::world::generator::{random_workcell, GenerationError};
 use crate::world::workcell::Workcell;
 
-pub mod command;
 pub mod truth;
 
 pub use truth::{read_truth_file, truth_path_for, write_truth_file, TruthFile};

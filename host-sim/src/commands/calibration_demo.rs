@@ -17,19 +17,18 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
-use clap::Args;
 use shared::calibration::CalibrationConfig;
 
 use crate::accuracy::metrics::{compare, ErrorMetrics};
-use crate::calibrate_cmd::{calibrate_log, part_height_warning};
+use crate::calibration::{calibrate_log, part_height_warning};
 use crate::link::check::Session;
 use crate::link::InProcessLink;
 use crate::recording::simulate;
 use crate::scenario::Scenario;
 
 /// Options of the default run.
-#[derive(Args, Debug, Clone)]
-pub struct DemoArgs {
+#[derive(clap::Args, Debug, Clone)]
+pub struct Args {
     /// Which random workcell (seed of the generator).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -38,7 +37,7 @@ pub struct DemoArgs {
     pub scenario: String,
 }
 
-impl Default for DemoArgs {
+impl Default for Args {
     fn default() -> Self {
         Self {
             seed: 1,
@@ -47,7 +46,7 @@ impl Default for DemoArgs {
     }
 }
 
-pub fn run_demo(args: &DemoArgs) -> Result<()> {
+pub fn run(args: &Args) -> Result<()> {
     let mut session = Session::open(InProcessLink::new(), Duration::from_secs(1))
         .map_err(|e| anyhow!("in-process controller link: {e}"))?;
     let status = session
@@ -151,15 +150,15 @@ mod tests {
 
     #[test]
     fn the_default_run_completes() {
-        run_demo(&DemoArgs::default()).unwrap();
+        run(&Args::default()).unwrap();
     }
 
     #[test]
     fn an_unknown_scenario_is_an_error() {
-        let args = DemoArgs {
+        let args = Args {
             scenario: "nope".into(),
-            ..DemoArgs::default()
+            ..Args::default()
         };
-        assert!(run_demo(&args).is_err());
+        assert!(run(&args).is_err());
     }
 }
