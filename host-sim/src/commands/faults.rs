@@ -15,7 +15,8 @@ use crate::pick::faults::{
     FaultTrial, AT_REST_RAD_S, STRIKE_CLEARANCE_M,
 };
 use crate::pick::montecarlo::trial_seed;
-use crate::pick::report::{link_line, result_name, write_run_outputs};
+use crate::pick::outputs::write_run_outputs;
+use crate::pick::report::{link_line, result_name};
 use crate::scenario::pick::{PickExperiment, PickScenarioFile};
 
 /// Options of `host-sim faults`.

@@ -10,8 +10,9 @@ use anyhow::{bail, Context, Result};
 use crate::link::{
     ByteLink, FramedLink, InProcessLink, NoiseConfig, NoisyLink, SerialPortLink, TcpLink,
 };
+use crate::pick::outputs::write_run_outputs;
 use crate::pick::record::PickRun;
-use crate::pick::report::{link_line, results_table, summary_line, write_run_outputs};
+use crate::pick::report::{link_line, results_table, summary_line};
 use crate::pick::runner::run_pick;
 use crate::scenario::pick::{PickExperiment, PickScenarioFile};
 

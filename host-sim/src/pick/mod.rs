@@ -2,13 +2,19 @@
 //! against the controller application over the serial protocol.
 //!
 //! - [`runner`]: one pick in lock step over any link.
-//! - [`record`]: what a pick leaves behind; [`report`], [`plots`]: tables, CSV and PNG.
+//! - [`record`]: what a pick leaves behind.
+//! - [`report`]: the results table and the terminal's lines; [`csv`]: the CSV
+//!   files; [`plots`]: the PNG figures; [`outputs`]: all of a run's files in
+//!   its folder; [`synthetic`]: a made-up run for tests and benchmarks.
 //! - [`montecarlo`]: many seeded picks over random workcells and their statistics.
 //! - [`faults`]: the pick under injected faults and its safety invariants.
 
+pub mod csv;
 pub mod faults;
 pub mod montecarlo;
+pub mod outputs;
 pub mod plots;
 pub mod record;
 pub mod report;
 pub mod runner;
+pub mod synthetic;
