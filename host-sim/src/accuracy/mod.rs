@@ -5,3 +5,4 @@ pub mod harness;
 pub mod metrics;
 pub mod report;
 pub mod stats;
+pub mod summary;

@@ -8,7 +8,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use shared::calibration::CalibrationConfig;
 
 use crate::accuracy::harness::{plan_trials, run_trials, HarnessOptions};
-use crate::accuracy::report::{markdown, summarise, write_outputs};
+use crate::accuracy::report::{markdown, write_outputs};
+use crate::accuracy::summary::summarise;
 use crate::scenario::{Scenario, SCENARIO_NAMES};
 
 /// Monte-Carlo accuracy of the self-calibration over random workcells.
