@@ -66,6 +66,7 @@ where
     I: IntoIterator<Item = Result<(usize, ObservationFrame), LogError>>,
 {
     // About 117 kB (see `SelfCalibrator`): boxed so worker threads keep small stacks.
+    // `shared`'s CalibrationError is not a `std::error::Error` yet: formatted here.
     let mut calibrator = Box::new(
         HostCalibrator::new(header, config)
             .map_err(|e| anyhow!("line 1: the calibration refuses the header: {e}"))?,

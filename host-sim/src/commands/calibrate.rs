@@ -89,6 +89,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     } else {
         (&calibration.refined, "refined estimate")
     };
+    // `shared`'s CalibrationError is not a `std::error::Error` yet: formatted here.
     let result = printed
         .as_ref()
         .map_err(|e| anyhow!("calibration of {} failed: {e}", args.log.display()))?;

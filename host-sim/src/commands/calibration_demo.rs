@@ -48,10 +48,8 @@ impl Default for Args {
 
 pub fn run(args: &Args) -> Result<()> {
     let mut session = Session::open(InProcessLink::new(), Duration::from_secs(1))
-        .map_err(|e| anyhow!("in-process controller link: {e}"))?;
-    let status = session
-        .status()
-        .map_err(|e| anyhow!("controller status: {e}"))?;
+        .context("in-process controller link")?;
+    let status = session.status().context("controller status")?;
     println!(
         "controller: {} (firmware {}, protocol v{}, {} Hz control), mode {:?}",
         session.handshake.board_name,
@@ -61,8 +59,9 @@ pub fn run(args: &Args) -> Result<()> {
         status.mode
     );
 
-    let scenario = Scenario::named(&args.scenario).map_err(|e| anyhow!("{e}"))?;
-    let run = simulate(&scenario, args.seed).map_err(|e| anyhow!("{e}"))?;
+    let scenario = Scenario::named(&args.scenario)?;
+    let run = simulate(&scenario, args.seed)
+        .with_context(|| format!("recording scenario {} (seed {})", scenario.name, args.seed))?;
     let frames = run.log.frames.len();
     let watched_s = run.log.frames.last().map_or(0.0, |f| f.t_s);
     println!(
@@ -83,6 +82,7 @@ pub fn run(args: &Args) -> Result<()> {
         .refined_uncertainty
         .as_ref()
         .and_then(part_height_warning);
+    // `shared`'s CalibrationError is not a `std::error::Error` yet: formatted here.
     let refined = calibration
         .refined
         .map_err(|e| anyhow!("self-calibration failed: {e}"))?;

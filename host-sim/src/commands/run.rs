@@ -109,7 +109,11 @@ fn run_on_link(experiment: &PickExperiment, seed: u64, args: &Args) -> Result<Pi
         )
     } else if let Some(spec) = link.strip_prefix("serial:") {
         let (path, baud) = match spec.split_once('@') {
-            Some((path, baud)) => (path, baud.parse().context("serial baud rate")?),
+            Some((path, baud)) => (
+                path,
+                baud.parse()
+                    .with_context(|| format!("serial baud rate {baud:?} in --link {link}"))?,
+            ),
             None => (spec, 115_200),
         };
         go(experiment, seed, SerialPortLink::open(path, baud)?, args)

@@ -311,7 +311,10 @@ pub fn run_trial(experiment: &PickExperiment, base_seed: u64, trial: usize) -> F
     let (faulty, fault) = inject(experiment, kind, &mut trial_rng(seed));
     let (run, error) = match run_faulty(&faulty, kind, seed) {
         Ok(run) => (run, None),
-        Err(error) => (PickRun::empty(&faulty.name, seed), Some(format!("{error}"))),
+        Err(error) => (
+            PickRun::empty(&faulty.name, seed),
+            Some(format!("{error:#}")),
+        ),
     };
     let mut found = violations(&run);
     let result = match &error {

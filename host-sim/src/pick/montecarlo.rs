@@ -90,7 +90,7 @@ pub fn run_trials(
             let summary = match run_pick_in_process(experiment, seed) {
                 Ok(run) => summarise(trial, seed, &run),
                 Err(error) => TrialSummary {
-                    result: format!("error: {error}"),
+                    result: format!("error: {error:#}"),
                     ..summarise(trial, seed, &PickRun::empty(&experiment.name, seed))
                 },
             };

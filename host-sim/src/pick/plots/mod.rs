@@ -13,7 +13,7 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use anyhow::{anyhow, bail, Result};
+use anyhow::{bail, Context, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::register_font;
@@ -80,10 +80,10 @@ where
     F: for<'a> FnOnce(&Area<'a>) -> DrawResult<'a>,
 {
     let root = BitMapBackend::new(path, size).into_drawing_area();
-    let fail = |e: &dyn std::fmt::Display| anyhow!("drawing {}: {e}", path.display());
-    root.fill(&WHITE).map_err(|e| fail(&e))?;
-    draw(&root).map_err(|e| fail(&e))?;
-    root.present().map_err(|e| fail(&e))?;
+    let drawing = || format!("drawing {}", path.display());
+    root.fill(&WHITE).with_context(drawing)?;
+    draw(&root).with_context(drawing)?;
+    root.present().with_context(drawing)?;
     Ok(())
 }
 

@@ -77,7 +77,7 @@ impl PickScenarioFile {
 
     /// Parses and validates TOML text.
     pub fn parse(text: &str) -> Result<Self> {
-        let file: Self = toml::from_str(text).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let file: Self = toml::from_str(text)?;
         file.validate()?;
         Ok(file)
     }
