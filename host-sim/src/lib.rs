@@ -1,4 +1,15 @@
 //! `host-sim` library: everything behind the `host-sim` binary's subcommands.
+//!
+//! - [`commands`]: the subcommands, one module each with its `Args` and `run`.
+//! - [`scenario`]: the scenarios: pick scenario files (TOML) and named recording scenarios.
+//! - [`world`]: the simulated world: workcell geometry and its generator, camera and vision, plant, conveyor, gripper, and the pick's [`world::World`].
+//! - [`pick`]: the full pick against the controller: lock-step runner, records, reports, CSV, plots, Monte Carlo, fault campaign.
+//! - [`recording`]: synthetic observation logs and their truth files from random workcells.
+//! - [`calibration`]: self-calibration of an observation log on the host.
+//! - [`accuracy`]: the seeded Monte-Carlo accuracy runs of the self-calibration.
+//! - [`log`]: the observation log (JSON Lines) reader and writer.
+//! - [`link`]: links to the controller (in process, emulator UART over TCP, serial port) and the link check.
+//! - [`geometry`]: small geometric helpers with the contract's conventions.
 
 pub mod accuracy;
 pub mod calibration;

@@ -26,7 +26,7 @@ use crate::link::InProcessLink;
 use crate::recording::simulate;
 use crate::scenario::Scenario;
 
-/// Options of the default run.
+/// Options of `host-sim calibration-demo`.
 #[derive(clap::Args, Debug, Clone)]
 pub struct Args {
     /// Which random workcell (seed of the generator).

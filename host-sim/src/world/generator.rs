@@ -28,16 +28,14 @@
 //! that circle's image centre against the disc centre's image (Eqs 3 to 8), about
 //! f d h / H^2 pixels for an optical centre d metres off the axis. Aiming within
 //! 0.1 m of the disc centre, d is about H tan(tilt): near zero for a camera
-//! looking straight down. Measured on the paper scenario's noise (100 workcells,
-//! tilt drawn from 0 to 35 degrees), the 95th percentile of the part-position
-//! error was 12.9 mm for tilts of 0 to 10 degrees, 1.22 mm for 10 to 20 and
-//! 0.67 mm for 20 to 35, with the calibrator's reported standard deviations
-//! covering the errors (normalised RMS about 1); `host-sim accuracy --trials 1000
-//! --scenarios paper,near-axis` confirms it with today's ranges: 11.5 mm (0 to 10
-//! degrees, `near-axis`), 1.45 mm (10 to 20), 0.70 mm (20 to 35). So every scenario draws the tilt from 10 to
-//! 35 degrees (the "tilted up to 35 degrees", off the axis as in A4), and
-//! the degenerate geometry is kept, measurable and warned about, in the
-//! `near-axis` scenario (tilt 0 to 10 degrees).
+//! looking straight down. On the paper scenario's noise, `host-sim accuracy
+//! --trials 1000 --scenarios paper,near-axis` gives a 95th percentile of the
+//! part-position error of 11.5 mm for tilts of 0 to 10 degrees (`near-axis`),
+//! 1.45 mm for 10 to 20 and 0.70 mm for 20 to 35, with the calibrator's reported
+//! standard deviations covering the errors. So every scenario draws the tilt
+//! from 10 to 35 degrees (the "tilted up to 35 degrees", off the axis as
+//! in A4), and the degenerate geometry is kept, measurable and warned about, in
+//! the `near-axis` scenario (tilt 0 to 10 degrees).
 
 use std::f64::consts::{PI, TAU};
 use std::fmt;
