@@ -1,7 +1,7 @@
 //! The pick's results in text: the markdown results table beside the paper's
 //! reported figures (Section 5, Figs 4 to 9), a one-line summary for the
 //! terminal, the link's figures, and the names and number formats the CSV
-//! files ([`super::csv`]) and the figures ([`super::plots`]) share.
+//! files and the PNG figures share.
 
 use std::fmt::Write as _;
 

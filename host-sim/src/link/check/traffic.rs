@@ -7,7 +7,7 @@ use shared::protocol::{
     PointLabel, SensorSample, JOINTS, MAX_FEATURE_POINTS, MAX_FRAME_LEN,
 };
 
-use super::{CheckError, ExchangeSummary};
+use super::outcome::{CheckError, ExchangeSummary};
 use crate::link::LinkError;
 
 /// A random data frame with token `token`, counted in `summary`.

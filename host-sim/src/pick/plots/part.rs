@@ -1,14 +1,12 @@
 //! The part's figures (the paper's Figs 4 to 9): its estimated and actual pose
 //! in the base frame, and the estimation errors.
 
-use super::{
+use super::panel::{
     band_segments, draw_time_panel, segments, time_range, Area, DrawResult, Panel, Series,
-    ACTUAL_COLOUR, ESTIMATE_COLOUR, FONT_FAMILY,
+    ACTUAL_COLOUR, ESTIMATE_COLOUR, FONT_FAMILY, YAW_JUMP_DEG,
 };
 use crate::pick::record::{PickRun, TickRecord};
 use crate::pick::report::wrap_angle_rad;
-
-pub(super) const YAW_JUMP_DEG: f64 = 180.0;
 
 /// Fig 4/6/8: estimated (solid) and actual (dashed) part X, Y, Z and yaw.
 pub(super) fn draw_part_pose<'a>(

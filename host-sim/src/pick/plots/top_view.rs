@@ -1,12 +1,13 @@
 //! The top view of the cell: robot base, disc, camera, drop-off, the part's
 //! true and estimated paths, the tool's path and where the gripper closed.
 
+use std::ops::Range;
+
 use plotters::prelude::*;
 
 use crate::pick::record::{PickRun, TickRecord};
-use std::ops::Range;
 
-use super::{
+use super::panel::{
     padded_range, segments, Area, DrawResult, ACTUAL_COLOUR, DISC_COLOUR, ESTIMATE_COLOUR,
     FONT_FAMILY, TOOL_COLOUR,
 };

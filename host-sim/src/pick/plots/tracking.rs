@@ -3,10 +3,9 @@
 
 use shared::protocol::PickPhase;
 
-use super::part::YAW_JUMP_DEG;
-use super::{
+use super::panel::{
     draw_time_panel, segments, time_range, Area, DrawResult, Panel, Series, ACTUAL_COLOUR,
-    FONT_FAMILY, TOOL_COLOUR,
+    FONT_FAMILY, TOOL_COLOUR, YAW_JUMP_DEG,
 };
 use crate::pick::record::{PhaseEvent, PickRun, TickRecord};
 use crate::pick::report::wrap_angle_rad;

@@ -13,6 +13,9 @@
 //! contract's part pose); on the disc it moves by the paper's Eq 1,
 //! `p_base = Rz(yaw) Rz(theta) p_rotating + T`. Once grasped it is fixed to the
 //! flange; released, it stays where the gripper opened (no falling model).
+//!
+//! Building the world of an experiment is in `build.rs`; one control period
+//! and the part's motion are in `motion.rs`.
 
 use std::f64::consts::PI;
 
