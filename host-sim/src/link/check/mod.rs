@@ -126,7 +126,7 @@ impl<L: ByteLink> Session<L> {
     }
 
     /// Sends `frames` mixed frames (camera features, sensor samples, actuator
-    /// commands, and a status request every [`STATUS_EVERY`]), keeping at most
+    /// commands, and a status request every `STATUS_EVERY` (64)), keeping at most
     /// `window` unanswered, and checks every reply in order.
     pub fn exchange(
         &mut self,

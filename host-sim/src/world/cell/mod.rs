@@ -4,7 +4,8 @@
 //!
 //! The controller meets it only through the protocol: it is told the
 //! [`CellConfig`] (nothing calibrated), reads [`SensorSample`]s and
-//! [`CameraFeatureFrame`]s, and acts by [`ActuatorCommand`]s, one per control
+//! [`CameraFeatureFrame`]s, and acts by
+//! [`ActuatorCommand`](shared::protocol::ActuatorCommand)s, one per control
 //! period. Everything else here (the truth, the layout, the grasp) is for the
 //! runner's records and the tests.
 //!
