@@ -6,9 +6,10 @@ use std::hint::black_box;
 use std::io::Cursor;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use host_sim::calibrate_cmd::calibrate_log;
+use host_sim::calibration::calibrate_log;
 use host_sim::log::{read_log, write_log};
-use host_sim::workcell::{simulate, Scenario};
+use host_sim::recording::simulate;
+use host_sim::scenario::Scenario;
 use shared::calibration::CalibrationConfig;
 
 fn benches(c: &mut Criterion) {

@@ -7,8 +7,9 @@ use std::hint::black_box;
 use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use host_sim::pick::outputs::write_run_outputs;
 use host_sim::pick::plots::write_run_plots;
-use host_sim::pick::report::{synthetic_run, write_run_outputs};
+use host_sim::pick::synthetic::synthetic_run;
 
 fn benches(c: &mut Criterion) {
     let run = synthetic_run("experiment-1", 6000);

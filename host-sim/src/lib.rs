@@ -1,18 +1,23 @@
 //! `host-sim` library: everything behind the `host-sim` binary's subcommands.
 //!
+//! - [`commands`]: the subcommands, one module each with its `Args` and `run`.
+//! - [`scenario`]: the scenarios: pick scenario files (TOML) and named recording scenarios.
+//! - [`world`]: the simulated world: workcell geometry and its generator, camera and vision, plant, conveyor, gripper, and the pick's [`world::World`].
+//! - [`pick`]: the full pick against the controller: lock-step runner, records, reports, CSV, plots, Monte Carlo, fault campaign.
+//! - [`recording`]: synthetic observation logs and their truth files from random workcells.
+//! - [`calibration`]: self-calibration of an observation log on the host.
+//! - [`accuracy`]: the seeded Monte-Carlo accuracy runs of the self-calibration.
 //! - [`log`]: the observation log (JSON Lines) reader and writer.
-//! - [`workcell`]: randomised synthetic workcells, scenarios, recording and truth files.
-//! - [`calibrate_cmd`]: calibration of a log (`host-sim calibrate`).
-//! - [`accuracy`]: the seeded Monte-Carlo accuracy runs (`host-sim accuracy`).
-//! - [`demo`]: the default run (`host-sim` without a subcommand).
 //! - [`link`]: links to the controller (in process, emulator UART over TCP, serial port) and the link check.
-//! - [`world`]: the simulated world's physics (robot plant, conveyor, gripper).
+//! - [`geometry`]: small geometric helpers with the contract's conventions.
 
 pub mod accuracy;
-pub mod calibrate_cmd;
-pub mod demo;
+pub mod calibration;
+pub mod commands;
+pub mod geometry;
 pub mod link;
 pub mod log;
 pub mod pick;
-pub mod workcell;
+pub mod recording;
+pub mod scenario;
 pub mod world;

@@ -1,18 +1,13 @@
 //! `host-sim`: the simulated workcell and the tools around the controller.
 //!
 //! Without a subcommand it runs the paper's experiments and the moving pick on
-//! the embedded default scenario (see [`host_sim::pick::command`]).
+//! the embedded default scenario (see [`host_sim::commands::run`]).
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use host_sim::accuracy::command::{run_accuracy, AccuracyArgs};
-use host_sim::calibrate_cmd::{run_calibrate, CalibrateArgs};
-use host_sim::demo::{run_demo, DemoArgs};
-use host_sim::link;
-use host_sim::pick::command::{run_pick_command, PickArgs};
-use host_sim::pick::faults::{run_fault_campaign, FaultCampaignArgs};
-use host_sim::pick::montecarlo::{run_montecarlo, MonteCarloArgs};
-use host_sim::workcell::command::{run_record, RecordArgs};
+use host_sim::commands::{
+    accuracy, calibrate, calibration_demo, faults, link_check, montecarlo, record, run,
+};
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
 #[derive(Parser, Debug)]
@@ -26,38 +21,36 @@ struct Cli {
 enum Command {
     /// The paper's experiments and the moving pick, end to end (also what `host-sim`
     /// without a subcommand does): results table, plots and CSV.
-    Run(PickArgs),
+    Run(run::Args),
     /// Seeded Monte Carlo of the pick over random workcells: success rate and error percentiles.
-    Montecarlo(MonteCarloArgs),
+    Montecarlo(montecarlo::Args),
     /// Seeded faulty picks (vision, encoder, conveyor, link and stall faults):
     /// the table of fault against outcome, and every safety invariant checked.
-    Faults(FaultCampaignArgs),
+    Faults(faults::Args),
     /// Self-calibration alone on one recorded workcell, against the paper's figures.
-    CalibrationDemo(DemoArgs),
+    CalibrationDemo(calibration_demo::Args),
     /// Record a synthetic observation log (and LOG.truth.json) from a random workcell.
-    Record(RecordArgs),
+    Record(record::Args),
     /// Calibrate from a log: result JSON on stdout, summary (and errors with --truth) on stderr.
-    Calibrate(CalibrateArgs),
+    Calibrate(calibrate::Args),
     /// Seeded Monte-Carlo accuracy over random workcells: markdown on stdout, CSV/JSON in --out.
-    Accuracy(AccuracyArgs),
+    Accuracy(accuracy::Args),
     /// Handshake with the controller, exchange frames and check every reply.
-    LinkCheck(link::cli::LinkCheckArgs),
+    LinkCheck(link_check::Args),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let outcome = match &cli.command {
-        None => run_pick_command(&PickArgs::default()),
-        Some(Command::Run(args)) => run_pick_command(args),
-        Some(Command::Montecarlo(args)) => run_montecarlo(args),
-        Some(Command::Faults(args)) => run_fault_campaign(args),
-        Some(Command::CalibrationDemo(args)) => run_demo(args),
-        Some(Command::Record(args)) => run_record(args),
-        Some(Command::Calibrate(args)) => run_calibrate(args),
-        Some(Command::Accuracy(args)) => run_accuracy(args),
-        Some(Command::LinkCheck(args)) => {
-            link::cli::run(args).map_err(|e| anyhow::anyhow!("link-check failed: {e}"))
-        }
+        None => run::run(&run::Args::default()),
+        Some(Command::Run(args)) => run::run(args),
+        Some(Command::Montecarlo(args)) => montecarlo::run(args),
+        Some(Command::Faults(args)) => faults::run(args),
+        Some(Command::CalibrationDemo(args)) => calibration_demo::run(args),
+        Some(Command::Record(args)) => record::run(args),
+        Some(Command::Calibrate(args)) => calibrate::run(args),
+        Some(Command::Accuracy(args)) => accuracy::run(args),
+        Some(Command::LinkCheck(args)) => link_check::run(args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

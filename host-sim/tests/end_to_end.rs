@@ -7,7 +7,8 @@ use std::process::{Command, Output};
 use host_sim::accuracy::harness::{plan_trials, run_trials, HarnessOptions, Method, TrialOutcome};
 use host_sim::accuracy::metrics::{compare, ErrorMetrics};
 use host_sim::accuracy::stats::{median, percentile};
-use host_sim::workcell::{read_truth_file, Scenario};
+use host_sim::recording::read_truth_file;
+use host_sim::scenario::Scenario;
 use indicatif::ProgressBar;
 use shared::observation::CalibrationResult;
 

@@ -6,7 +6,7 @@
 use host_sim::pick::faults::{run_trial, violations, FaultKind};
 use host_sim::pick::record::{PickResult, PickRun};
 use host_sim::pick::runner::run_pick_in_process;
-use host_sim::pick::scenario::{
+use host_sim::scenario::pick::{
     CameraBump, FaultWindow, MissedCounts, PickExperiment, PickScenarioFile, SpeedChange,
 };
 use rayon::prelude::*;

@@ -4,7 +4,8 @@
 use std::io::Cursor;
 
 use host_sim::log::{read_log, write_log, LogError, LogReader, LogWriter, DEFAULT_MAX_LINE_BYTES};
-use host_sim::workcell::{simulate, Scenario};
+use host_sim::recording::simulate;
+use host_sim::scenario::Scenario;
 
 const HEADER: &str = r#"{"type":"header","version":1,"camera":{"width":256,"height":256,"f_px":290.0,"cx":127.5,"cy":127.5},"reference_radius_m":0.40,"part_feature_count":3}"#;
 

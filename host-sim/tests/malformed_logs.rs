@@ -10,9 +10,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use host_sim::accuracy::metrics::compare;
-use host_sim::calibrate_cmd::calibrate_frames;
+use host_sim::calibration::calibrate_frames;
 use host_sim::log::{LogProblem, LogReader, DEFAULT_MAX_LINE_BYTES};
-use host_sim::workcell::truth::read_truth_file;
+use host_sim::recording::truth::read_truth_file;
 use shared::calibration::CalibrationConfig;
 
 fn corpus_dir() -> PathBuf {

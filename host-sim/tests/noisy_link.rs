@@ -8,7 +8,7 @@ use host_sim::link::NoiseConfig;
 use host_sim::pick::faults::{violations, NOISY_LINK_BYTE_ERROR_RATE};
 use host_sim::pick::record::{LinkRecord, PickResult};
 use host_sim::pick::runner::{run_pick_in_process, run_pick_in_process_noisy};
-use host_sim::pick::scenario::{PickExperiment, PickScenarioFile};
+use host_sim::scenario::pick::{PickExperiment, PickScenarioFile};
 use rayon::prelude::*;
 
 fn experiment(name: &str) -> PickExperiment {

@@ -5,7 +5,7 @@
 use host_sim::pick::montecarlo::{run_trials, TrialSummary};
 use host_sim::pick::record::{LinkRecord, PickResult, PickRun};
 use host_sim::pick::runner::run_pick_in_process;
-use host_sim::pick::scenario::{PickExperiment, PickScenarioFile};
+use host_sim::scenario::pick::{PickExperiment, PickScenarioFile};
 use shared::protocol::{FaultCause, PickPhase};
 
 fn experiment(name: &str) -> PickExperiment {

@@ -4,7 +4,7 @@
 //! before the fix; each names the invariant it guards.
 
 use host_sim::pick::faults::{run_trial, FaultKind, FaultTrial, STRIKE_CLEARANCE_M};
-use host_sim::pick::scenario::{PickExperiment, PickScenarioFile};
+use host_sim::scenario::pick::{PickExperiment, PickScenarioFile};
 
 fn turning() -> PickExperiment {
     PickScenarioFile::embedded_default()

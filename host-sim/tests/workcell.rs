@@ -4,12 +4,10 @@
 
 use std::f64::consts::{PI, TAU};
 
-use host_sim::workcell::effector::{EFFECTOR_HEIGHT_RANGE_M, EFFECTOR_MARK_SPACING_M};
-use host_sim::workcell::generator::{DISC_RADIUS_M, SHOULDER_HEIGHT_M};
-use host_sim::workcell::{
-    read_truth_file, simulate, truth_path_for, write_truth_file, FeatureHeights, Scenario,
-    SCENARIO_NAMES,
-};
+use host_sim::recording::{read_truth_file, simulate, truth_path_for, write_truth_file};
+use host_sim::scenario::{FeatureHeights, Scenario, SCENARIO_NAMES};
+use host_sim::world::dimensions::{DISC_RADIUS_M, SHOULDER_HEIGHT_M};
+use host_sim::world::effector::{EFFECTOR_HEIGHT_RANGE_M, EFFECTOR_MARK_SPACING_M};
 use nalgebra::{Matrix3, Vector3};
 use shared::observation::{CalibrationResult, LogHeader, PixelPoint};
 

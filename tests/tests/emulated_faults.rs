@@ -12,7 +12,7 @@ use host_sim::link::FramedLink;
 use host_sim::pick::faults::violations;
 use host_sim::pick::record::PickResult;
 use host_sim::pick::runner::{run_pick, run_pick_in_process};
-use host_sim::pick::scenario::{FaultWindow, MissedCounts, PickExperiment, PickScenarioFile};
+use host_sim::scenario::pick::{FaultWindow, MissedCounts, PickExperiment, PickScenarioFile};
 use integration_tests::qemu::{firmware_elf_path, QemuBoard};
 use integration_tests::stopping_at;
 use shared::protocol::FaultCause;

@@ -13,7 +13,7 @@ use host_sim::link::{FramedLink, NoiseConfig, NoisyLink};
 use host_sim::pick::faults::{violations, NOISY_LINK_BYTE_ERROR_RATE};
 use host_sim::pick::record::PickResult;
 use host_sim::pick::runner::{run_pick, run_pick_in_process_noisy};
-use host_sim::pick::scenario::{FaultWindow, PickScenarioFile};
+use host_sim::scenario::pick::{FaultWindow, PickScenarioFile};
 use integration_tests::qemu::{firmware_elf_path, QemuBoard};
 use integration_tests::stopping_at;
 use shared::protocol::FaultCause;

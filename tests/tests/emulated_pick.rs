@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use host_sim::link::FramedLink;
 use host_sim::pick::record::{PickResult, PickRun};
 use host_sim::pick::runner::{run_pick, run_pick_in_process};
-use host_sim::pick::scenario::PickScenarioFile;
+use host_sim::scenario::pick::PickScenarioFile;
 use integration_tests::qemu::{firmware_elf_path, QemuBoard};
 use shared::protocol::{CostUnit, Message, RuntimeReport};
 

@@ -11,8 +11,9 @@ use shared::calibration::{CalibrationConfig, CalibrationError};
 use shared::observation::CalibrationResult;
 
 use super::metrics::{compare, ErrorMetrics};
-use crate::calibrate_cmd::{calibrate_log, part_sigmas_m};
-use crate::workcell::{simulate, Scenario};
+use crate::calibration::{calibrate_log, part_sigmas_m};
+use crate::recording::simulate;
+use crate::scenario::Scenario;
 
 /// Which estimate of a trial.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]

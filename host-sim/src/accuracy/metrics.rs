@@ -6,7 +6,7 @@ use std::fmt;
 use serde::{Deserialize, Serialize};
 use shared::observation::CalibrationResult;
 
-use crate::workcell::geometry::{angle_distance, from_array, from_rows, rotation_z};
+use crate::geometry::{angle_distance, from_array, from_rows, rotation_z};
 
 /// One calibration's errors. Distances are 3-D Euclidean.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

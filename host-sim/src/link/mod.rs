@@ -10,7 +10,6 @@
 //! The integration tests (`tests/tests/emulator_link.rs`) run the same checks.
 
 pub mod check;
-pub mod cli;
 mod framed;
 mod in_process;
 mod noisy;

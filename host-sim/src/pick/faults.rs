@@ -1,4 +1,5 @@
-//! `host-sim faults`: the pick attacked the way a factory floor will (issue 7).
+//! The fault campaign (`host-sim faults`): the pick attacked the way a factory
+//! floor will (issue 7).
 //! Each trial draws a random workcell and one fault (or none, as the control
 //! group) with random parameters, runs the pick in process, and checks the
 //! safety invariants: joint speeds and commanded torques within their limits,
@@ -11,24 +12,18 @@
 
 use std::fmt::Write as _;
 use std::fs;
-use std::path::PathBuf;
 
-use anyhow::{bail, Context, Result};
-use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
+use anyhow::{Context, Result};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rayon::prelude::*;
 use serde::Serialize;
 
 use super::montecarlo::trial_seed;
 use super::record::{PickResult, PickRun};
 use super::report::result_name;
 use super::runner::{run_pick_in_process, run_pick_in_process_noisy};
-use super::scenario::{
-    CameraBump, FaultWindow, MissedCounts, PickExperiment, PickScenarioFile, SpeedChange,
-};
 use crate::link::NoiseConfig;
+use crate::scenario::pick::{CameraBump, FaultWindow, MissedCounts, PickExperiment, SpeedChange};
 
 /// The gripper strikes the disc if its grasp point comes lower than this above
 /// the disc's surface while not holding the part (parts are 40 mm or more high,
@@ -36,32 +31,6 @@ use crate::link::NoiseConfig;
 pub const STRIKE_CLEARANCE_M: f64 = 0.02;
 /// A controlled stop ends with every joint slower than this, rad/s.
 pub const AT_REST_RAD_S: f64 = 0.02;
-
-/// Options of `host-sim faults`.
-#[derive(Args, Debug, Clone)]
-pub struct FaultCampaignArgs {
-    /// Number of faulty picks (the fault kinds take turns).
-    #[arg(long, default_value_t = 1000)]
-    pub trials: usize,
-    /// Base seed: trial k runs the world seeded with `seed * 1_000_000 + k`.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Replay this one trial (with plots and CSV in --out) instead of the campaign.
-    #[arg(long)]
-    pub trial: Option<usize>,
-    /// The experiment the faults are injected into (no conveyor stop: the disc turns).
-    #[arg(long, default_value = "turning")]
-    pub experiment: String,
-    /// Scenario file (TOML); the embedded default when absent.
-    #[arg(long)]
-    pub scenario: Option<PathBuf>,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    pub threads: Option<usize>,
-    /// Folder for report.md, trials.csv and summary.json.
-    #[arg(long, default_value = "faults-out")]
-    pub out: PathBuf,
-}
 
 /// The faults the campaign injects, one per trial.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -256,7 +225,7 @@ pub struct FaultTrial {
 
 /// Runs `faulty` (fault `kind` injected) in process; through a noisy line
 /// for [`FaultKind::NoisyLink`].
-fn run_faulty(faulty: &PickExperiment, kind: FaultKind, seed: u64) -> Result<PickRun> {
+pub fn run_faulty(faulty: &PickExperiment, kind: FaultKind, seed: u64) -> Result<PickRun> {
     match kind {
         FaultKind::NoisyLink => run_pick_in_process_noisy(
             faulty,
@@ -329,7 +298,8 @@ pub fn violations(run: &PickRun) -> Vec<String> {
     found
 }
 
-fn trial_rng(seed: u64) -> ChaCha8Rng {
+/// The generator trial seed `seed` draws its fault's parameters from.
+pub fn trial_rng(seed: u64) -> ChaCha8Rng {
     // Not the world's stream: the fault's draws must not shift the workcell's.
     ChaCha8Rng::seed_from_u64(seed ^ 0xFA17_FA17_FA17_FA17)
 }
@@ -341,7 +311,10 @@ pub fn run_trial(experiment: &PickExperiment, base_seed: u64, trial: usize) -> F
     let (faulty, fault) = inject(experiment, kind, &mut trial_rng(seed));
     let (run, error) = match run_faulty(&faulty, kind, seed) {
         Ok(run) => (run, None),
-        Err(error) => (PickRun::empty(&faulty.name, seed), Some(format!("{error}"))),
+        Err(error) => (
+            PickRun::empty(&faulty.name, seed),
+            Some(format!("{error:#}")),
+        ),
     };
     let mut found = violations(&run);
     let result = match &error {
@@ -434,7 +407,8 @@ pub fn fault_table(trials: &[FaultTrial]) -> String {
     out
 }
 
-fn write_csv(path: &std::path::Path, trials: &[FaultTrial]) -> Result<()> {
+/// Writes `trials.csv`: one line per trial.
+pub fn write_trials_csv(path: &std::path::Path, trials: &[FaultTrial]) -> Result<()> {
     let mut text = String::from(
         "trial,seed,fault_kind,fault,result,success,stop_cause,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm,end_joint_speed_rad_s,violations\n",
     );
@@ -457,116 +431,4 @@ fn write_csv(path: &std::path::Path, trials: &[FaultTrial]) -> Result<()> {
         );
     }
     fs::write(path, text).with_context(|| format!("writing {}", path.display()))
-}
-
-/// Replays one trial with plots and time series in `args.out`.
-fn replay(args: &FaultCampaignArgs, experiment: &PickExperiment, trial: usize) -> Result<()> {
-    let seed = trial_seed(args.seed, trial);
-    let kind = FaultKind::of_trial(trial);
-    let (faulty, fault) = inject(experiment, kind, &mut trial_rng(seed));
-    println!("trial {trial} (seed {seed}): {} ({fault})", kind.name());
-    let run = run_faulty(&faulty, kind, seed)?;
-    super::report::write_run_outputs(&run, &args.out)?;
-    if let Some(line) = super::report::link_line(&run) {
-        println!("{line}");
-    }
-    let unsafe_list = violations(&run);
-    println!(
-        "result: {}; worst speed {:.2} and torque {:.2} of their limits; lowest gripper over the disc {:.1} mm; {}",
-        result_name(&run.result),
-        run.max_speed_ratio,
-        run.max_torque_ratio,
-        run.min_tool_clearance_m * 1e3,
-        if unsafe_list.is_empty() {
-            "safe".to_owned()
-        } else {
-            format!("UNSAFE: {}", unsafe_list.join("; "))
-        }
-    );
-    println!("(plots and time series in {})", args.out.display());
-    Ok(())
-}
-
-pub fn run_fault_campaign(args: &FaultCampaignArgs) -> Result<()> {
-    let file = match &args.scenario {
-        Some(path) => PickScenarioFile::from_path(path)?,
-        None => PickScenarioFile::embedded_default()?,
-    };
-    let experiment = file.experiment(&args.experiment)?.clone();
-    if experiment.conveyor.stop.is_some() {
-        bail!(
-            "experiment {} stops its conveyor; the fault campaign needs one that keeps turning (e.g. turning)",
-            experiment.name
-        );
-    }
-    if let Some(trial) = args.trial {
-        return replay(args, &experiment, trial);
-    }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.unwrap_or(0))
-        .build()
-        .context("thread pool")?;
-    let progress = ProgressBar::new(args.trials as u64);
-    progress.set_style(
-        ProgressStyle::with_template(
-            "{bar:40} {pos}/{len} faulty picks, {elapsed} elapsed, eta {eta}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    let started = std::time::Instant::now();
-    let mut trials: Vec<FaultTrial> = pool.install(|| {
-        (0..args.trials)
-            .into_par_iter()
-            .map(|trial| {
-                let result = run_trial(&experiment, args.seed, trial);
-                progress.inc(1);
-                result
-            })
-            .collect()
-    });
-    progress.finish_and_clear();
-    trials.sort_by_key(|t| t.trial);
-    let elapsed = started.elapsed().as_secs_f64();
-    let unsafe_runs: Vec<&FaultTrial> =
-        trials.iter().filter(|t| !t.violations.is_empty()).collect();
-    let mut report = format!(
-        "# Faulty picks: {}, {} trials (seed {})\n\n{}\n",
-        experiment.name,
-        trials.len(),
-        args.seed,
-        fault_table(&trials)
-    );
-    let _ = writeln!(
-        report,
-        "Unsafe or unreported ends: {} of {} (a stop must leave every joint under {AT_REST_RAD_S} rad/s; the gripper must stay {:.0} mm above the disc).",
-        unsafe_runs.len(),
-        trials.len(),
-        STRIKE_CLEARANCE_M * 1e3
-    );
-    for t in unsafe_runs.iter().take(20) {
-        let _ = writeln!(
-            report,
-            "- trial {} (replay: `host-sim faults --seed {} --trial {}`): {} ({}): {}",
-            t.trial,
-            args.seed,
-            t.trial,
-            t.kind.name(),
-            t.fault,
-            t.violations.join("; ")
-        );
-    }
-    let _ = writeln!(
-        report,
-        "\n{} picks in {elapsed:.1} s on {} threads.",
-        trials.len(),
-        pool.current_num_threads()
-    );
-    fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    fs::write(args.out.join("report.md"), &report).context("writing report.md")?;
-    write_csv(&args.out.join("trials.csv"), &trials)?;
-    let json = serde_json::to_string_pretty(&trials).context("summary.json")?;
-    fs::write(args.out.join("summary.json"), json).context("writing summary.json")?;
-    println!("{report}");
-    println!("(written to {})", args.out.display());
-    Ok(())
 }

@@ -1,20 +1,20 @@
-//! The full pick in the simulated workcell: the world (plant, conveyor, camera,
-//! gripper) against the controller application over the serial protocol.
+//! The full pick in the simulated workcell: the world ([`crate::world`])
+//! against the controller application over the serial protocol.
 //!
-//! - [`scenario`]: the scenario file (TOML) and its embedded default.
-//! - [`world`], [`camera_sim`]: the simulated workcell.
 //! - [`runner`]: one pick in lock step over any link.
-//! - [`record`]: what a pick leaves behind; [`report`], [`plots`]: tables, CSV and PNG.
-//! - [`command`]: `host-sim run`; [`montecarlo`]: `host-sim montecarlo`;
-//!   [`faults`]: `host-sim faults` (the pick under injected faults).
+//! - [`record`]: what a pick leaves behind.
+//! - [`report`]: the results table and the terminal's lines; [`csv`]: the CSV
+//!   files; [`plots`]: the PNG figures; [`outputs`]: all of a run's files in
+//!   its folder; [`synthetic`]: a made-up run for tests and benchmarks.
+//! - [`montecarlo`]: many seeded picks over random workcells and their statistics.
+//! - [`faults`]: the pick under injected faults and its safety invariants.
 
-pub mod camera_sim;
-pub mod command;
+pub mod csv;
 pub mod faults;
 pub mod montecarlo;
+pub mod outputs;
 pub mod plots;
 pub mod record;
 pub mod report;
 pub mod runner;
-pub mod scenario;
-pub mod world;
+pub mod synthetic;

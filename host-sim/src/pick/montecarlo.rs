@@ -1,44 +1,21 @@
-//! `host-sim montecarlo`: many seeded picks over random workcells, in parallel,
-//! with the success rate and the percentiles of the errors that matter for a
-//! grasp. Every trial's seed is in `trials.csv`, and
-//! `host-sim run --experiment NAME --seed SEED` replays it with plots.
+//! The pick's Monte Carlo (`host-sim montecarlo`): many seeded picks over
+//! random workcells, in parallel, with the success rate and the percentiles of
+//! the errors that matter for a grasp. Every trial's seed is in `trials.csv`,
+//! and `host-sim run --experiment NAME --seed SEED` replays it with plots.
 
 use std::fmt::Write as _;
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::{Context, Result};
-use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 use rayon::prelude::*;
 use serde::Serialize;
 
 use super::record::{PickResult, PickRun};
+use super::report::result_name;
 use super::runner::run_pick_in_process;
-use super::scenario::{PickExperiment, PickScenarioFile};
-
-/// Options of `host-sim montecarlo`.
-#[derive(Args, Debug, Clone)]
-pub struct MonteCarloArgs {
-    /// Number of random workcells.
-    #[arg(long, default_value_t = 1000)]
-    pub trials: usize,
-    /// Base seed: trial k runs the world seeded with `seed * 1_000_000 + k`.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Which experiment of the scenario file to repeat.
-    #[arg(long, default_value = "turning")]
-    pub experiment: String,
-    /// Scenario file (TOML); the embedded default when absent.
-    #[arg(long)]
-    pub scenario: Option<PathBuf>,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    pub threads: Option<usize>,
-    /// Folder for report.md, trials.csv and summary.json.
-    #[arg(long, default_value = "montecarlo-out")]
-    pub out: PathBuf,
-}
+use crate::scenario::pick::PickExperiment;
 
 /// One trial, flattened for the CSV and the statistics.
 #[derive(Debug, Clone, Serialize)]
@@ -73,7 +50,7 @@ fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
     TrialSummary {
         trial,
         seed,
-        result: super::report::result_name(&run.result),
+        result: result_name(&run.result),
         success: run.result == PickResult::Success,
         estimate_error_x_mm: ex * 1e3,
         estimate_error_y_mm: ey * 1e3,
@@ -113,7 +90,7 @@ pub fn run_trials(
             let summary = match run_pick_in_process(experiment, seed) {
                 Ok(run) => summarise(trial, seed, &run),
                 Err(error) => TrialSummary {
-                    result: format!("error: {error}"),
+                    result: format!("error: {error:#}"),
                     ..summarise(trial, seed, &PickRun::empty(&experiment.name, seed))
                 },
             };
@@ -214,7 +191,8 @@ pub fn montecarlo_table(experiment: &str, summaries: &[TrialSummary]) -> String 
     out
 }
 
-fn write_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
+/// Writes `trials.csv`: one line per trial.
+pub fn write_trials_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
     let mut text = String::from(
         "trial,seed,result,success,estimate_error_x_mm,estimate_error_y_mm,estimate_error_z_mm,estimate_error_mm,estimate_yaw_error_deg,grasp_error_mm,grasp_yaw_error_deg,grasp_relative_speed_mm_s,calibrated_after_s,duration_s,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm\n",
     );
@@ -242,41 +220,4 @@ fn write_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
         );
     }
     fs::write(path, text).with_context(|| format!("writing {}", path.display()))
-}
-
-pub fn run_montecarlo(args: &MonteCarloArgs) -> Result<()> {
-    let file = match &args.scenario {
-        Some(path) => PickScenarioFile::from_path(path)?,
-        None => PickScenarioFile::embedded_default()?,
-    };
-    let experiment = file.experiment(&args.experiment)?.clone();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.unwrap_or(0))
-        .build()
-        .context("thread pool")?;
-    let progress = ProgressBar::new(args.trials as u64);
-    progress.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} picks, {elapsed} elapsed, eta {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    let started = std::time::Instant::now();
-    let summaries = pool.install(|| run_trials(&experiment, args.trials, args.seed, &progress));
-    progress.finish_and_clear();
-    let elapsed = started.elapsed().as_secs_f64();
-    let mut report = montecarlo_table(&experiment.name, &summaries);
-    let _ = writeln!(
-        report,
-        "\n{} picks in {elapsed:.1} s on {} threads (seed {}); every trial's seed is in trials.csv.",
-        summaries.len(),
-        pool.current_num_threads(),
-        args.seed
-    );
-    fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    fs::write(args.out.join("report.md"), &report).context("writing report.md")?;
-    write_csv(&args.out.join("trials.csv"), &summaries)?;
-    let json = serde_json::to_string_pretty(&summaries).context("summary.json")?;
-    fs::write(args.out.join("summary.json"), json).context("writing summary.json")?;
-    println!("{report}");
-    println!("(written to {})", args.out.display());
-    Ok(())
 }

@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use shared::protocol::{CalibrationReport, FaultCause, PickPhase};
 
 use crate::link::NoiseCounts;
+use crate::world::CellLayout;
 
 /// One sample of the run (every telemetry period of the controller).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -79,15 +80,6 @@ pub struct GraspRecord {
     /// The controller's part estimate (fused, Eq 1) minus the truth at that instant.
     pub estimate_error_m: Option<[f64; 3]>,
     pub estimate_yaw_error_rad: Option<f64>,
-}
-
-/// The fixed geometry of the cell for the top view, all in the base frame.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct CellLayout {
-    pub disc_centre_base_m: [f64; 3],
-    pub disc_radius_m: f64,
-    pub camera_centre_base_m: [f64; 3],
-    pub drop_off_base_m: [f64; 3],
 }
 
 /// What the serial link went through during the run.

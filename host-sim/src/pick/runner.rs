@@ -11,7 +11,7 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Context, Result};
 use shared::protocol::{
     ControllerMode, FaultCause, Message, MessageKind, PickPhase, PickTelemetry, PROTOCOL_VERSION,
 };
@@ -19,10 +19,10 @@ use shared::protocol::{
 use super::record::{
     CalibrationRecord, GraspRecord, LinkRecord, PhaseEvent, PickResult, PickRun, TickRecord,
 };
-use super::scenario::PickExperiment;
-use super::world::{World, WorldTruth};
+use crate::geometry::angle_distance;
 use crate::link::{ByteLink, FramedLink, LinkError, NoiseConfig, NoisyLink};
-use crate::workcell::geometry::angle_distance;
+use crate::scenario::pick::PickExperiment;
+use crate::world::{World, WorldTruth};
 
 /// Seconds the run goes on after the controller reports Done or Faulted, to
 /// see the arm come to rest and stay there.
@@ -461,7 +461,7 @@ pub fn run_pick<L: ByteLink>(
 /// A pick against the controller linked into this process.
 pub fn run_pick_in_process(experiment: &PickExperiment, seed: u64) -> Result<PickRun> {
     let mut link = FramedLink::new(crate::link::InProcessLink::new());
-    run_pick(experiment, seed, &mut link).map_err(|e| anyhow!("{e:#}"))
+    run_pick(experiment, seed, &mut link)
 }
 
 /// The same through a noisy line ([`NoisyLink`]): bytes flipped, dropped and
@@ -472,5 +472,5 @@ pub fn run_pick_in_process_noisy(
     noise: NoiseConfig,
 ) -> Result<PickRun> {
     let mut link = FramedLink::new(NoisyLink::new(crate::link::InProcessLink::new(), noise));
-    run_pick(experiment, seed, &mut link).map_err(|e| anyhow!("{e:#}"))
+    run_pick(experiment, seed, &mut link)
 }

@@ -5,6 +5,8 @@
 
 use nalgebra::Vector3;
 
+use crate::scenario::pick::GripperSettings;
+
 /// The tolerances a grasp must meet. Horizontal and vertical are separate: the
 /// jaws' clearance limits the horizontal error, their depth the vertical one.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -13,6 +15,18 @@ pub struct GraspTolerance {
     pub vertical_m: f64,
     pub yaw_rad: f64,
     pub relative_speed_m_s: f64,
+}
+
+impl GraspTolerance {
+    /// The scenario's gripper settings in the world's units.
+    pub fn from_settings(gripper: &GripperSettings) -> Self {
+        Self {
+            horizontal_m: gripper.horizontal_m,
+            vertical_m: gripper.vertical_m,
+            yaw_rad: gripper.yaw_deg.to_radians(),
+            relative_speed_m_s: gripper.relative_speed_m_s,
+        }
+    }
 }
 
 impl Default for GraspTolerance {

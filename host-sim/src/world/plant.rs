@@ -33,6 +33,8 @@ impl RobotPlant {
         payload_com_flange_m: nalgebra::Vector3<f64>,
         q0: JointVector<f64>,
     ) -> Result<Self> {
+        // `shared`'s RobotError is not a `std::error::Error` yet, so it is
+        // formatted into the error here and below, then given its context.
         let model = Puma560::<f64>::new()
             .with_drive(DriveOptions {
                 armature: true,

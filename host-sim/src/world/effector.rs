@@ -11,8 +11,8 @@ use std::f64::consts::{PI, TAU};
 use nalgebra::Vector3;
 use rand::{Rng, RngExt};
 
-use super::generator::{DISC_RADIUS_M, SHOULDER_HEIGHT_M};
-use super::model::Workcell;
+use super::dimensions::{DISC_RADIUS_M, SHOULDER_HEIGHT_M};
+use super::workcell::Workcell;
 
 pub const EFFECTOR_MARK_SPACING_M: f64 = 0.1;
 pub const EFFECTOR_HEIGHT_RANGE_M: (f64, f64) = (0.05, 0.5);

@@ -17,18 +17,18 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
-use clap::Args;
 use shared::calibration::CalibrationConfig;
 
 use crate::accuracy::metrics::{compare, ErrorMetrics};
-use crate::calibrate_cmd::{calibrate_log, part_height_warning};
+use crate::calibration::{calibrate_log, part_height_warning};
 use crate::link::check::Session;
 use crate::link::InProcessLink;
-use crate::workcell::{simulate, Scenario};
+use crate::recording::simulate;
+use crate::scenario::Scenario;
 
-/// Options of the default run.
-#[derive(Args, Debug, Clone)]
-pub struct DemoArgs {
+/// Options of `host-sim calibration-demo`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct Args {
     /// Which random workcell (seed of the generator).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -37,7 +37,7 @@ pub struct DemoArgs {
     pub scenario: String,
 }
 
-impl Default for DemoArgs {
+impl Default for Args {
     fn default() -> Self {
         Self {
             seed: 1,
@@ -46,12 +46,10 @@ impl Default for DemoArgs {
     }
 }
 
-pub fn run_demo(args: &DemoArgs) -> Result<()> {
+pub fn run(args: &Args) -> Result<()> {
     let mut session = Session::open(InProcessLink::new(), Duration::from_secs(1))
-        .map_err(|e| anyhow!("in-process controller link: {e}"))?;
-    let status = session
-        .status()
-        .map_err(|e| anyhow!("controller status: {e}"))?;
+        .context("in-process controller link")?;
+    let status = session.status().context("controller status")?;
     println!(
         "controller: {} (firmware {}, protocol v{}, {} Hz control), mode {:?}",
         session.handshake.board_name,
@@ -61,8 +59,9 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
         status.mode
     );
 
-    let scenario = Scenario::named(&args.scenario).map_err(|e| anyhow!("{e}"))?;
-    let run = simulate(&scenario, args.seed).map_err(|e| anyhow!("{e}"))?;
+    let scenario = Scenario::named(&args.scenario)?;
+    let run = simulate(&scenario, args.seed)
+        .with_context(|| format!("recording scenario {} (seed {})", scenario.name, args.seed))?;
     let frames = run.log.frames.len();
     let watched_s = run.log.frames.last().map_or(0.0, |f| f.t_s);
     println!(
@@ -83,6 +82,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
         .refined_uncertainty
         .as_ref()
         .and_then(part_height_warning);
+    // `shared`'s CalibrationError is not a `std::error::Error` yet: formatted here.
     let refined = calibration
         .refined
         .map_err(|e| anyhow!("self-calibration failed: {e}"))?;
@@ -150,15 +150,15 @@ mod tests {
 
     #[test]
     fn the_default_run_completes() {
-        run_demo(&DemoArgs::default()).unwrap();
+        run(&Args::default()).unwrap();
     }
 
     #[test]
     fn an_unknown_scenario_is_an_error() {
-        let args = DemoArgs {
+        let args = Args {
             scenario: "nope".into(),
-            ..DemoArgs::default()
+            ..Args::default()
         };
-        assert!(run_demo(&args).is_err());
+        assert!(run(&args).is_err());
     }
 }

@@ -4,125 +4,23 @@
 //! rejects and counts bad frames and then carries on.
 
 use std::collections::VecDeque;
-use std::fmt;
 use std::time::{Duration, Instant};
 
-use heapless::{String as HString, Vec as HVec};
 use shared::protocol::{
-    ActuatorCommand, CameraFeatureFrame, ControllerStatus, GripperCommand, LabeledPoint, Message,
-    MessageKind, PointLabel, RuntimeReport, SensorSample, JOINTS, MAX_FEATURE_POINTS,
-    MAX_FRAME_LEN, PROTOCOL_VERSION,
+    ControllerStatus, Message, MessageKind, RuntimeReport, MAX_FRAME_LEN, PROTOCOL_VERSION,
 };
 
-use super::{ByteLink, FramedLink, LinkError};
+use super::{ByteLink, FramedLink};
+
+mod outcome;
+mod traffic;
+
+pub use outcome::{CheckError, CorruptionSummary, ExchangeSummary, Handshake};
+
+use traffic::{bounded_string, data_frame, data_kind_token, encode, flip_one_bit, SplitMix64};
 
 /// One `StatusRequest` is mixed in per this many frames of the exchange.
 const STATUS_EVERY: u64 = 64;
-
-/// Why a check failed.
-#[derive(Debug)]
-pub enum CheckError {
-    Link(LinkError),
-    /// The controller's answer was not the one the protocol requires here.
-    Unexpected {
-        /// Which reply of the phase (0-based) went wrong.
-        index: u64,
-        expected: String,
-        got: String,
-    },
-    /// The controller's rejected-frame count did not move as injected.
-    RejectCount {
-        injected: u32,
-        before: u32,
-        after: u32,
-    },
-    /// A configuration the check cannot run with.
-    Config(String),
-}
-
-impl fmt::Display for CheckError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            CheckError::Link(e) => write!(f, "{e}"),
-            CheckError::Unexpected {
-                index,
-                expected,
-                got,
-            } => write!(f, "reply #{index}: expected {expected}, got {got}"),
-            CheckError::RejectCount {
-                injected,
-                before,
-                after,
-            } => write!(
-                f,
-                "injected {injected} corrupt frames but frames_rejected went from {before} to {after}"
-            ),
-            CheckError::Config(detail) => write!(f, "invalid check configuration: {detail}"),
-        }
-    }
-}
-
-impl std::error::Error for CheckError {}
-
-impl From<LinkError> for CheckError {
-    fn from(e: LinkError) -> Self {
-        CheckError::Link(e)
-    }
-}
-
-/// What the controller said in its `HelloAck`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Handshake {
-    pub board_name: String,
-    pub firmware_version: String,
-    pub protocol_version: u16,
-    pub control_rate_hz: u32,
-    pub max_frame_len: u16,
-    /// Error reports received before the `HelloAck` (leftovers of a previous session).
-    pub stale_reports: u32,
-}
-
-/// Counts from an exchange.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct ExchangeSummary {
-    /// Data frames sent, each acknowledged and checked.
-    pub data_frames: u64,
-    pub camera_frames: u64,
-    pub sensor_samples: u64,
-    pub actuator_commands: u64,
-    pub status_requests: u64,
-    pub elapsed: Duration,
-    pub bytes_sent: u64,
-    pub bytes_received: u64,
-    /// Time from sending a frame to receiving its reply (including the wait
-    /// behind the frames in flight before it): median, 99th percentile, max.
-    pub round_trip_p50: Duration,
-    pub round_trip_p99: Duration,
-    pub round_trip_max: Duration,
-}
-
-impl ExchangeSummary {
-    /// Round trips (all frames) per second.
-    pub fn frames_per_second(&self) -> f64 {
-        let frames = (self.data_frames + self.status_requests) as f64;
-        frames / self.elapsed.as_secs_f64().max(1e-9)
-    }
-}
-
-/// Counts from a corruption run.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct CorruptionSummary {
-    /// Garbage runs (random non-zero bytes, then a delimiter) sent.
-    pub garbage_runs: u32,
-    /// Valid frames sent with one bit flipped.
-    pub flipped_frames: u32,
-    /// Runs of non-zero bytes longer than any frame, then a delimiter.
-    pub oversized_runs: u32,
-    /// Valid frames sent after each injection and acknowledged in order.
-    pub recovered_acks: u32,
-    pub rejected_before: u32,
-    pub rejected_after: u32,
-}
 
 /// A reply the controller owes, in order.
 #[derive(Debug, Clone, PartialEq)]
@@ -228,7 +126,7 @@ impl<L: ByteLink> Session<L> {
     }
 
     /// Sends `frames` mixed frames (camera features, sensor samples, actuator
-    /// commands, and a status request every [`STATUS_EVERY`]), keeping at most
+    /// commands, and a status request every `STATUS_EVERY` (64)), keeping at most
     /// `window` unanswered, and checks every reply in order.
     pub fn exchange(
         &mut self,
@@ -395,88 +293,7 @@ impl<L: ByteLink> Session<L> {
     fn data_frame(&mut self, rng: &mut SplitMix64, summary: &mut ExchangeSummary) -> Message {
         let token = self.next_token;
         self.next_token = self.next_token.wrapping_add(1);
-        summary.data_frames += 1;
-        match rng.next() % 3 {
-            0 => {
-                summary.camera_frames += 1;
-                Message::CameraFeatures(camera_frame(token, rng))
-            }
-            1 => {
-                summary.sensor_samples += 1;
-                // Encoder counts of a PUMA 560 joint stay within about +-2^17.
-                let mut joint_counts = [0i32; JOINTS];
-                for c in joint_counts.iter_mut() {
-                    *c = (rng.next() % (1 << 18)) as i32 - (1 << 17);
-                }
-                Message::SensorSample(SensorSample {
-                    seq: token,
-                    time_us: rng.next() >> 20,
-                    joint_counts,
-                    conveyor_counts: rng.next() as u32,
-                    part_in_gripper: false,
-                })
-            }
-            _ => {
-                summary.actuator_commands += 1;
-                let mut joint_torque_nm = [0f32; JOINTS];
-                for t in joint_torque_nm.iter_mut() {
-                    *t = rng.unit() * 100.0 - 50.0;
-                }
-                Message::ActuatorCommand(ActuatorCommand {
-                    seq: token,
-                    joint_torque_nm,
-                    gripper: if rng.next() & 1 == 0 {
-                        GripperCommand::Open
-                    } else {
-                        GripperCommand::Close
-                    },
-                    camera_trigger: (rng.next() & 3 == 0).then_some(token),
-                })
-            }
-        }
-    }
-}
-
-/// A camera frame of 1 to 6 points (disc centre, reference, effector and part
-/// points), or with probability 1/16 a full one of [`MAX_FEATURE_POINTS`] so
-/// frames near the protocol's maximum length are exercised too.
-fn camera_frame(trigger_id: u32, rng: &mut SplitMix64) -> CameraFeatureFrame {
-    let mut points: HVec<LabeledPoint, MAX_FEATURE_POINTS> = HVec::new();
-    let count = if rng.next() & 15 == 0 {
-        MAX_FEATURE_POINTS
-    } else {
-        1 + (rng.next() % 6) as usize
-    };
-    for i in 0..count {
-        let label = match i {
-            0 => PointLabel::DiscCenter,
-            1 => PointLabel::Reference,
-            2 | 3 => PointLabel::Effector((i - 2) as u8),
-            _ => PointLabel::Part((i - 4) as u8),
-        };
-        let point = LabeledPoint {
-            label,
-            u_px: rng.unit() * 640.0,
-            v_px: rng.unit() * 480.0,
-        };
-        if points.push(point).is_err() {
-            break;
-        }
-    }
-    CameraFeatureFrame {
-        trigger_id,
-        capture_time_us: rng.next() >> 16,
-        points,
-    }
-}
-
-fn data_kind_token(message: &Message) -> (MessageKind, u32) {
-    match message {
-        Message::CameraFeatures(f) => (MessageKind::CameraFeatures, f.trigger_id),
-        Message::SensorSample(s) => (MessageKind::SensorSample, s.seq),
-        Message::ActuatorCommand(c) => (MessageKind::ActuatorCommand, c.seq),
-        // `data_frame` makes only the three data kinds.
-        _ => (MessageKind::SensorSample, 0),
+        data_frame(token, rng, summary)
     }
 }
 
@@ -525,64 +342,10 @@ fn describe(expected: &Expected) -> String {
     }
 }
 
-fn encode(message: &Message) -> Result<Vec<u8>, CheckError> {
-    let mut frame = [0u8; MAX_FRAME_LEN];
-    let len = shared::protocol::encode_frame(message, &mut frame)
-        .map_err(|e| CheckError::Link(LinkError::Encode(e.to_string())))?;
-    Ok(frame.iter().take(len).copied().collect())
-}
-
-/// Flips one bit strictly inside the frame (not its delimiters), choosing a
-/// bit whose flip does not make a zero byte, which would split the frame in two.
-fn flip_one_bit(frame: &mut [u8], rng: &mut SplitMix64) {
-    let inner = frame.len().saturating_sub(2);
-    if inner == 0 {
-        return;
-    }
-    loop {
-        let at = 1 + (rng.next() as usize) % inner;
-        let bit = 1u8 << (rng.next() % 8);
-        if let Some(byte) = frame.get_mut(at) {
-            if *byte ^ bit != 0 {
-                *byte ^= bit;
-                return;
-            }
-        }
-    }
-}
-
-fn bounded_string<const N: usize>(text: &str) -> HString<N> {
-    let mut s = HString::new();
-    for c in text.chars() {
-        if s.push(c).is_err() {
-            break;
-        }
-    }
-    s
-}
-
-/// SplitMix64: a small seeded generator, so every run sends the same traffic.
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`.
-    fn unit(&mut self) -> f32 {
-        (self.next() >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::link::InProcessLink;
+    use crate::link::{InProcessLink, LinkError};
 
     /// Lets the check's own frames through, except that it drops or swaps
     /// one (each `send` of `FramedLink` carries exactly one frame).
@@ -675,17 +438,5 @@ mod tests {
             .exchange(2_000, 8, 7)
             .expect_err("reordering must be noticed");
         assert!(matches!(err, CheckError::Unexpected { .. }), "{err}");
-    }
-
-    #[test]
-    fn flipping_one_bit_never_makes_a_delimiter() {
-        let mut rng = SplitMix64(3);
-        for _ in 0..2_000 {
-            let mut frame = vec![0u8, 1, 1, 1, 2, 0x80, 0];
-            flip_one_bit(&mut frame, &mut rng);
-            assert_eq!(frame.first(), Some(&0));
-            assert_eq!(frame.last(), Some(&0));
-            assert!(frame.iter().skip(1).take(5).all(|&b| b != 0));
-        }
     }
 }

@@ -11,8 +11,8 @@ use anyhow::Context;
 use serde::{Deserialize, Serialize};
 use shared::observation::CalibrationResult;
 
-use super::generator::WorkcellParameters;
-use super::scenario::Scenario;
+use crate::scenario::recording::Scenario;
+use crate::world::generator::WorkcellParameters;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TruthFile {

@@ -7,13 +7,14 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use shared::calibration::CalibrationConfig;
 
-use super::harness::{plan_trials, run_trials, HarnessOptions};
-use super::report::{markdown, summarise, write_outputs};
-use crate::workcell::{Scenario, SCENARIO_NAMES};
+use crate::accuracy::harness::{plan_trials, run_trials, HarnessOptions};
+use crate::accuracy::report::{markdown, write_outputs};
+use crate::accuracy::summary::summarise;
+use crate::scenario::{Scenario, SCENARIO_NAMES};
 
 /// Monte-Carlo accuracy of the self-calibration over random workcells.
 #[derive(clap::Args, Debug)]
-pub struct AccuracyArgs {
+pub struct Args {
     /// Random workcells per scenario.
     #[arg(long, default_value_t = 100)]
     pub trials: usize,
@@ -38,7 +39,7 @@ pub struct AccuracyArgs {
     pub out: PathBuf,
 }
 
-pub fn run_accuracy(args: &AccuracyArgs) -> anyhow::Result<()> {
+pub fn run(args: &Args) -> anyhow::Result<()> {
     let mut scenarios = args
         .scenarios
         .iter()

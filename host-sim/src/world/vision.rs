@@ -21,8 +21,8 @@ use rand_distr::StandardNormal;
 use shared::observation::PixelPoint;
 use shared::protocol::{CameraFeatureFrame, LabeledPoint, PointLabel};
 
-use super::scenario::CameraSettings;
-use crate::workcell::camera::PinholeCamera;
+use super::camera::PinholeCamera;
+use crate::scenario::pick::CameraSettings;
 
 /// Where the marks are at the exposure instant, all in the disc frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -213,8 +213,9 @@ impl CameraSim {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pick::scenario::PickScenarioFile;
-    use crate::workcell::{random_workcell, Scenario};
+    use crate::scenario::pick::PickScenarioFile;
+    use crate::scenario::recording::Scenario;
+    use crate::world::generator::random_workcell;
 
     fn settings() -> CameraSettings {
         PickScenarioFile::embedded_default()
@@ -235,7 +236,7 @@ mod tests {
             part_disc: workcell
                 .features_rotating
                 .iter()
-                .map(|p| crate::workcell::Workcell::disc_from_rotating(theta, p))
+                .map(|p| crate::world::Workcell::disc_from_rotating(theta, p))
                 .collect(),
             effector_disc: [Vector3::new(0.1, 0.0, 0.3), Vector3::new(0.0, 0.1, 0.3)],
         };

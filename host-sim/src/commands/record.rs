@@ -4,14 +4,13 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use super::record::simulate;
-use super::scenario::{Scenario, SCENARIO_NAMES};
-use super::truth::{truth_path_for, write_truth_file};
 use crate::log::write_log_file;
+use crate::recording::{simulate, truth_path_for, write_truth_file};
+use crate::scenario::recording::{Scenario, SCENARIO_NAMES};
 
 /// Record a synthetic observation log from a random workcell (plus LOG.truth.json beside it).
 #[derive(clap::Args, Debug)]
-pub struct RecordArgs {
+pub struct Args {
     /// Scenario name: noise-free, paper, noisy, quarter-turn, non-planar, reverse or near-axis.
     #[arg(long, default_value = "paper")]
     pub scenario: String,
@@ -27,7 +26,7 @@ pub struct RecordArgs {
     pub output: PathBuf,
 }
 
-pub fn run_record(args: &RecordArgs) -> anyhow::Result<()> {
+pub fn run(args: &Args) -> anyhow::Result<()> {
     let scenario = Scenario::named(&args.scenario)
         .with_context(|| format!("choose one of {}", SCENARIO_NAMES.join(", ")))?;
     let scenario = match args.effector_frames {

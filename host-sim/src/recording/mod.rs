@@ -1,7 +1,8 @@
 //! Recording a synthetic observation log from a random workcell: the images of
 //! the disc centre, the reference mark, the part's features and (in a few frames)
 //! two end-effector marks, with pixel noise, dropouts and gross outliers as the
-//! scenario says. Detections outside the image (contract rule) are null.
+//! scenario says. Detections outside the image (contract rule) are null. The
+//! ground truth goes beside the log ([`truth`]).
 
 use std::f64::consts::TAU;
 
@@ -13,14 +14,17 @@ use shared::observation::{
     CalibrationQuality, EffectorSighting, ObservationFrame, PixelPoint, MAX_PART_FEATURES,
 };
 
-use super::camera::PinholeCamera;
-use super::effector::{EffectorPose, EffectorSampler};
-use super::generator::{random_workcell, GenerationError};
-use super::geometry::to_array;
-use super::model::Workcell;
-use super::scenario::Scenario;
-use super::truth::TruthFile;
+use crate::geometry::to_array;
 use crate::log::ObservationLog;
+use crate::scenario::recording::Scenario;
+use crate::world::camera::PinholeCamera;
+use crate::world::effector::{EffectorPose, EffectorSampler};
+use crate::world::generator::{random_workcell, GenerationError};
+use crate::world::workcell::Workcell;
+
+pub mod truth;
+
+pub use truth::{read_truth_file, truth_path_for, write_truth_file, TruthFile};
 
 /// Attempts at a tool pose whose noisy marks both land in the image.
 const EFFECTOR_POSE_ATTEMPTS: usize = 100;

@@ -3,14 +3,15 @@
 
 use std::time::Duration;
 
-use clap::{ArgGroup, Args};
+use anyhow::Context;
+use clap::ArgGroup;
 
-use super::check::{CheckError, Session};
-use super::{ByteLink, InProcessLink, SerialPortLink, TcpLink};
+use crate::link::check::{CheckError, Session};
+use crate::link::{ByteLink, InProcessLink, SerialPortLink, TcpLink};
 
-#[derive(Args, Debug, Clone)]
+#[derive(clap::Args, Debug, Clone)]
 #[command(group(ArgGroup::new("target").required(true).args(["in_process", "tcp", "serial"])))]
-pub struct LinkCheckArgs {
+pub struct Args {
     /// The controller logic linked into this process (no emulator, no board).
     #[arg(long)]
     pub in_process: bool,
@@ -41,7 +42,11 @@ pub struct LinkCheckArgs {
 }
 
 /// Runs the check; the error says what went wrong and where.
-pub fn run(args: &LinkCheckArgs) -> Result<(), CheckError> {
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    check(args).context("link-check failed")
+}
+
+fn check(args: &Args) -> Result<(), CheckError> {
     let timeout = Duration::from_millis(args.reply_timeout_ms);
     if args.in_process {
         run_on(InProcessLink::new(), args, timeout)
@@ -56,7 +61,7 @@ pub fn run(args: &LinkCheckArgs) -> Result<(), CheckError> {
     }
 }
 
-fn run_on<L: ByteLink>(link: L, args: &LinkCheckArgs, timeout: Duration) -> Result<(), CheckError> {
+fn run_on<L: ByteLink>(link: L, args: &Args, timeout: Duration) -> Result<(), CheckError> {
     let mut session = Session::open(link, timeout)?;
     let h = &session.handshake;
     println!(

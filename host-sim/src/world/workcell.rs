@@ -8,7 +8,7 @@ use shared::observation::{
 };
 
 use super::camera::PinholeCamera;
-use super::geometry::{rotation_z, rows, to_array, wrap_angle};
+use crate::geometry::{rotation_z, rows, to_array, wrap_angle};
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Workcell {

@@ -28,16 +28,14 @@
 //! that circle's image centre against the disc centre's image (Eqs 3 to 8), about
 //! f d h / H^2 pixels for an optical centre d metres off the axis. Aiming within
 //! 0.1 m of the disc centre, d is about H tan(tilt): near zero for a camera
-//! looking straight down. Measured on the paper scenario's noise (100 workcells,
-//! tilt drawn from 0 to 35 degrees), the 95th percentile of the part-position
-//! error was 12.9 mm for tilts of 0 to 10 degrees, 1.22 mm for 10 to 20 and
-//! 0.67 mm for 20 to 35, with the calibrator's reported standard deviations
-//! covering the errors (normalised RMS about 1); `host-sim accuracy --trials 1000
-//! --scenarios paper,near-axis` confirms it with today's ranges: 11.5 mm (0 to 10
-//! degrees, `near-axis`), 1.45 mm (10 to 20), 0.70 mm (20 to 35). So every scenario draws the tilt from 10 to
-//! 35 degrees (the "tilted up to 35 degrees", off the axis as in A4), and
-//! the degenerate geometry is kept, measurable and warned about, in the
-//! `near-axis` scenario (tilt 0 to 10 degrees).
+//! looking straight down. On the paper scenario's noise, `host-sim accuracy
+//! --trials 1000 --scenarios paper,near-axis` gives a 95th percentile of the
+//! part-position error of 11.5 mm for tilts of 0 to 10 degrees (`near-axis`),
+//! 1.45 mm for 10 to 20 and 0.70 mm for 20 to 35, with the calibrator's reported
+//! standard deviations covering the errors. So every scenario draws the tilt
+//! from 10 to 35 degrees (the "tilted up to 35 degrees", off the axis as
+//! in A4), and the degenerate geometry is kept, measurable and warned about, in
+//! the `near-axis` scenario (tilt 0 to 10 degrees).
 
 use std::f64::consts::{PI, TAU};
 use std::fmt;
@@ -47,16 +45,13 @@ use rand::{Rng, RngExt};
 use shared::observation::CameraIntrinsics;
 
 use super::camera::PinholeCamera;
+use super::dimensions::{DISC_RADIUS_M, SHOULDER_HEIGHT_M};
 use super::effector::EffectorSampler;
-use super::model::Workcell;
-use super::scenario::{FeatureHeights, Scenario};
+use super::workcell::Workcell;
+use crate::scenario::recording::{FeatureHeights, Scenario, CAMERA_MAX_TILT_DEG};
 
 pub const IMAGE_SIDE_PX: u32 = 256;
-pub const DISC_RADIUS_M: f64 = 0.45;
 pub const CAMERA_HEIGHT_RANGE_M: (f64, f64) = (1.8, 3.0);
-/// Largest camera tilt any scenario may ask for, degrees: beyond it the disc is
-/// seen too obliquely for the rim-fill rule above.
-pub const CAMERA_MAX_TILT_DEG: f64 = 35.0;
 pub const CAMERA_AIM_OFFSET_M: f64 = 0.1;
 pub const DISC_RIM_FILL_RANGE: (f64, f64) = (0.55, 0.80);
 /// Pixels the disc rim keeps from the image border.
@@ -64,8 +59,6 @@ pub const RIM_MARGIN_PX: f64 = 2.0;
 pub const REFERENCE_RADIUS_RANGE_M: (f64, f64) = (0.35, 0.43);
 pub const PART_CENTRE_RADIUS_RANGE_M: (f64, f64) = (0.10, 0.30);
 pub const FEATURE_RADIUS_RANGE_M: (f64, f64) = (0.03, 0.06);
-/// PUMA 560 shoulder height in the base frame: d1 of `puma560-model.md`.
-pub const SHOULDER_HEIGHT_M: f64 = 0.67183;
 
 const MAX_WORKCELL_ATTEMPTS: usize = 100;
 

@@ -5,20 +5,20 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Context, Result};
-use clap::Args;
+use anyhow::{bail, Context, Result};
 
-use super::record::PickRun;
-use super::report::{link_line, results_table, summary_line, write_run_outputs};
-use super::runner::run_pick;
-use super::scenario::{PickExperiment, PickScenarioFile};
 use crate::link::{
     ByteLink, FramedLink, InProcessLink, NoiseConfig, NoisyLink, SerialPortLink, TcpLink,
 };
+use crate::pick::outputs::write_run_outputs;
+use crate::pick::record::PickRun;
+use crate::pick::report::{link_line, results_table, summary_line};
+use crate::pick::runner::run_pick;
+use crate::scenario::pick::{PickExperiment, PickScenarioFile};
 
 /// Options of the default run.
-#[derive(Args, Debug, Clone)]
-pub struct PickArgs {
+#[derive(clap::Args, Debug, Clone)]
+pub struct Args {
     /// Scenario file (TOML); the embedded default when absent (see --print-scenario).
     #[arg(long)]
     pub scenario: Option<PathBuf>,
@@ -60,7 +60,7 @@ fn parse_rate(text: &str) -> Result<f64, String> {
     }
 }
 
-impl Default for PickArgs {
+impl Default for Args {
     fn default() -> Self {
         Self {
             scenario: None,
@@ -76,12 +76,12 @@ impl Default for PickArgs {
     }
 }
 
-fn run_on_link(experiment: &PickExperiment, seed: u64, args: &PickArgs) -> Result<PickRun> {
+fn run_on_link(experiment: &PickExperiment, seed: u64, args: &Args) -> Result<PickRun> {
     fn go<L: ByteLink>(
         experiment: &PickExperiment,
         seed: u64,
         link: L,
-        args: &PickArgs,
+        args: &Args,
     ) -> Result<PickRun> {
         if args.link_noise > 0.0 {
             let noise = NoiseConfig {
@@ -109,14 +109,16 @@ fn run_on_link(experiment: &PickExperiment, seed: u64, args: &PickArgs) -> Resul
         )
     } else if let Some(spec) = link.strip_prefix("serial:") {
         let (path, baud) = match spec.split_once('@') {
-            Some((path, baud)) => (path, baud.parse().context("serial baud rate")?),
+            Some((path, baud)) => (
+                path,
+                baud.parse()
+                    .with_context(|| format!("serial baud rate {baud:?} in --link {link}"))?,
+            ),
             None => (spec, 115_200),
         };
         go(experiment, seed, SerialPortLink::open(path, baud)?, args)
     } else {
-        Err(anyhow!(
-            "unknown --link {link}: use in-process, tcp:HOST:PORT or serial:PATH[@BAUD]"
-        ))
+        bail!("unknown --link {link}: use in-process, tcp:HOST:PORT or serial:PATH[@BAUD]")
     }
 }
 
@@ -131,7 +133,7 @@ fn selected(file: &PickScenarioFile, names: &[String]) -> Result<Vec<PickExperim
         .collect()
 }
 
-pub fn run_pick_command(args: &PickArgs) -> Result<()> {
+pub fn run(args: &Args) -> Result<()> {
     if args.print_scenario {
         print!(
             "{}",

@@ -47,7 +47,7 @@ pub struct Scenario {
     /// uniformly from `(low, high)`. The paper's setting (A4, Fig 1) is a camera
     /// beside the disc, looking at it at a slant: [`PAPER_CAMERA_TILT_DEG`]. Only
     /// the `near-axis` scenario puts the camera almost on the disc's axis, where the
-    /// feature heights are poorly observable (see `generator`).
+    /// feature heights are poorly observable (see `world::generator`).
     #[serde(default = "paper_camera_tilt_deg")]
     pub camera_tilt_deg: (f64, f64),
     /// Where the disc may stand relative to the robot.
@@ -80,15 +80,17 @@ impl Default for DiscPlacement {
 
 /// Camera tilt range of every scenario but `near-axis`, degrees: the issue's
 /// "tilted up to 35 degrees", starting at 10 degrees so that the camera is off
-/// the disc's axis (see `generator` for why).
+/// the disc's axis (see `world::generator` for why).
 pub const PAPER_CAMERA_TILT_DEG: (f64, f64) = (10.0, 35.0);
 
 /// Camera tilt range of the `near-axis` scenario, degrees.
 pub const NEAR_AXIS_CAMERA_TILT_DEG: (f64, f64) = (0.0, 10.0);
 
-/// Truth files written before the tilt range was part of the scenario drew it from
-/// 0 to 35 degrees; they read back with today's default, which only matters for
-/// re-recording them.
+/// Largest camera tilt any scenario may ask for, degrees: beyond it the disc is
+/// seen too obliquely for the workcell generator's rim-fill rule.
+pub const CAMERA_MAX_TILT_DEG: f64 = 35.0;
+
+/// A scenario without `camera_tilt_deg` (in a truth file) reads as the paper's range.
 fn paper_camera_tilt_deg() -> (f64, f64) {
     PAPER_CAMERA_TILT_DEG
 }

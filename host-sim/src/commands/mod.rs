@@ -1,0 +1,22 @@
+//! The `host-sim` subcommands, one file each named like the subcommand, each
+//! with its options (`Args`) and `run`. The work they do is in the domain
+//! modules ([`crate::pick`], [`crate::recording`], [`crate::calibration`],
+//! [`crate::accuracy`], [`crate::link`]).
+//!
+//! - [`run`]: `host-sim run` (and `host-sim` alone): the experiments and the moving pick.
+//! - [`montecarlo`]: `host-sim montecarlo`: seeded picks over random workcells.
+//! - [`faults`]: `host-sim faults`: the pick under injected faults.
+//! - [`calibration_demo`]: `host-sim calibration-demo`: self-calibration alone.
+//! - [`record`]: `host-sim record`: a synthetic log and its truth file.
+//! - [`calibrate`]: `host-sim calibrate`: calibration of a log.
+//! - [`accuracy`]: `host-sim accuracy`: Monte-Carlo accuracy of the self-calibration.
+//! - [`link_check`]: `host-sim link-check`: handshake and checked exchange with the controller.
+
+pub mod accuracy;
+pub mod calibrate;
+pub mod calibration_demo;
+pub mod faults;
+pub mod link_check;
+pub mod montecarlo;
+pub mod record;
+pub mod run;

@@ -1,0 +1,73 @@
+//! `host-sim montecarlo`: many seeded picks over random workcells, in parallel,
+//! with the success rate and the percentiles of the errors that matter for a
+//! grasp (see [`crate::pick::montecarlo`]).
+
+use std::fmt::Write as _;
+use std::fs;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::pick::montecarlo::{montecarlo_table, run_trials, write_trials_csv};
+use crate::scenario::pick::PickScenarioFile;
+
+/// Options of `host-sim montecarlo`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct Args {
+    /// Number of random workcells.
+    #[arg(long, default_value_t = 1000)]
+    pub trials: usize,
+    /// Base seed: trial k runs the world seeded with `seed * 1_000_000 + k`.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Which experiment of the scenario file to repeat.
+    #[arg(long, default_value = "turning")]
+    pub experiment: String,
+    /// Scenario file (TOML); the embedded default when absent.
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Folder for report.md, trials.csv and summary.json.
+    #[arg(long, default_value = "montecarlo-out")]
+    pub out: PathBuf,
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let file = match &args.scenario {
+        Some(path) => PickScenarioFile::from_path(path)?,
+        None => PickScenarioFile::embedded_default()?,
+    };
+    let experiment = file.experiment(&args.experiment)?.clone();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build()
+        .context("thread pool")?;
+    let progress = ProgressBar::new(args.trials as u64);
+    progress.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} picks, {elapsed} elapsed, eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let started = std::time::Instant::now();
+    let summaries = pool.install(|| run_trials(&experiment, args.trials, args.seed, &progress));
+    progress.finish_and_clear();
+    let elapsed = started.elapsed().as_secs_f64();
+    let mut report = montecarlo_table(&experiment.name, &summaries);
+    let _ = writeln!(
+        report,
+        "\n{} picks in {elapsed:.1} s on {} threads (seed {}); every trial's seed is in trials.csv.",
+        summaries.len(),
+        pool.current_num_threads(),
+        args.seed
+    );
+    fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    fs::write(args.out.join("report.md"), &report).context("writing report.md")?;
+    write_trials_csv(&args.out.join("trials.csv"), &summaries)?;
+    let json = serde_json::to_string_pretty(&summaries).context("summary.json")?;
+    fs::write(args.out.join("summary.json"), json).context("writing summary.json")?;
+    println!("{report}");
+    println!("(written to {})", args.out.display());
+    Ok(())
+}

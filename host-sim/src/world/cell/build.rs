@@ -1,0 +1,230 @@
+//! Building the world of one experiment: the drawn workcell, the plant with
+//! its true link masses, the encoders, the conveyor (its stop chosen so that the
+//! part comes to rest in front of the robot), the camera and the drop-off.
+
+use std::f64::consts::TAU;
+
+use anyhow::{bail, Context, Result};
+use nalgebra::Vector3;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use shared::fusion::CounterWidth;
+use shared::robot::JointVector;
+
+use super::{
+    mean, PartState, World, DROP_OFF_DISTANCE_M, DROP_OFF_HEIGHT_M, DROP_OFF_TURN_RAD,
+    STOP_REACH_M, STOP_SEARCH_STEP_S, TOOL_PAYLOAD_COM_FLANGE_M,
+};
+use crate::scenario::pick::PickExperiment;
+use crate::scenario::recording::{DiscPlacement, FeatureHeights, Scenario};
+use crate::world::conveyor::{Conveyor, ConveyorProfile, ConveyorStop, MissedBurst, SpeedRamp};
+use crate::world::generator::random_workcell;
+use crate::world::gripper::GraspTolerance;
+use crate::world::plant::{JointEncoders, RobotPlant};
+use crate::world::vision::CameraSim;
+
+/// The recorder's scenario with this experiment's part and camera tilt: the
+/// workcell generator's ranges (Section 5's setup) do the rest.
+fn workcell_scenario(experiment: &PickExperiment) -> Scenario {
+    let [low, high] = experiment.camera.tilt_deg;
+    Scenario {
+        name: experiment.name.clone(),
+        pixel_sigma_px: experiment.camera.pixel_sigma_px,
+        dropout_probability: experiment.camera.dropout_probability,
+        outlier_probability: experiment.camera.outlier_probability,
+        part_feature_count: usize::from(experiment.part.feature_count),
+        feature_heights: FeatureHeights::FlatTop {
+            min_m: experiment.part.height_m,
+            max_m: experiment.part.height_m,
+        },
+        camera_tilt_deg: (low, high),
+        disc_placement: DiscPlacement {
+            distance_from_base_axis_m: (
+                experiment.cell.disc_distance_m[0],
+                experiment.cell.disc_distance_m[1],
+            ),
+            below_shoulder_m: (
+                experiment.cell.disc_below_shoulder_m[0],
+                experiment.cell.disc_below_shoulder_m[1],
+            ),
+            azimuth_deg: (
+                experiment.cell.disc_azimuth_deg[0],
+                experiment.cell.disc_azimuth_deg[1],
+            ),
+        },
+        ..Scenario::paper()
+    }
+}
+
+/// The first instant at or after `after_s` from which decelerating at
+/// `deceleration` leaves the disc at rest with angle `target` (mod 2 pi). The rest
+/// angle grows monotonically while the ripple's acceleration stays below the
+/// deceleration, so a scan for the crossing plus bisection finds it.
+fn stop_instant_for_rest_angle(
+    conveyor: &Conveyor,
+    after_s: f64,
+    deceleration: f64,
+    target: f64,
+    min_speed_rad_s: f64,
+) -> Result<f64> {
+    let turn_index =
+        |t: f64| ((conveyor.rest_angle_if_stopped_at(t, deceleration) - target) / TAU).floor();
+    let horizon_s = after_s + 2.0 * TAU / min_speed_rad_s + 1.0;
+    let mut t0 = after_s;
+    let k0 = turn_index(t0);
+    let at_target = |t: f64| {
+        let d = (conveyor.rest_angle_if_stopped_at(t, deceleration) - target).rem_euclid(TAU);
+        d.min(TAU - d) < 1e-12
+    };
+    if at_target(t0) {
+        return Ok(t0);
+    }
+    while t0 < horizon_s {
+        let t1 = t0 + STOP_SEARCH_STEP_S;
+        if turn_index(t1) != k0 {
+            let (mut low, mut high) = (t0, t1);
+            for _ in 0..80 {
+                let mid = 0.5 * (low + high);
+                if turn_index(mid) == k0 {
+                    low = mid;
+                } else {
+                    high = mid;
+                }
+            }
+            return Ok(high);
+        }
+        t0 = t1;
+    }
+    bail!("no conveyor stop instant within {horizon_s:.1} s puts the part in front of the robot")
+}
+
+impl World {
+    pub fn new(experiment: &PickExperiment, seed: u64) -> Result<Self> {
+        experiment.validate().context("pick experiment")?;
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let (workcell, _) = random_workcell(&mut rng, &workcell_scenario(experiment))?;
+        let error = experiment.robot.link_mass_error;
+        let link_mass_scale: [f64; 6] =
+            core::array::from_fn(|_| 1.0 - error + 2.0 * error * rng.random::<f64>());
+        let camera_seed: u64 = rng.random();
+        let width = match experiment.conveyor.counter_bits {
+            16 => CounterWidth::Bits16,
+            _ => CounterWidth::Bits32,
+        };
+        let start_raw = match experiment.faults.counter_counts_before_wrap {
+            // Still draw, so the fault changes nothing else of the world.
+            Some(before_wrap) => {
+                let _ = rng.random::<u32>();
+                width.max().saturating_sub(before_wrap)
+            }
+            None => rng.random::<u32>() & width.max(),
+        };
+
+        let plant = RobotPlant::new(
+            link_mass_scale,
+            experiment.robot.payload_kg,
+            Vector3::from(TOOL_PAYLOAD_COM_FLANGE_M),
+            shared::planning::ready_posture(),
+        )?;
+        let gear = shared::robot::Puma560::<f64>::new();
+        let mut counts_per_rad = [0.0; 6];
+        for (c, drive) in counts_per_rad.iter_mut().zip(gear.drive_params().iter()) {
+            *c = experiment.robot.joint_counts_per_motor_rev * drive.gear_ratio.abs() / TAU;
+        }
+        let encoders = JointEncoders { counts_per_rad };
+
+        let settings = experiment.conveyor;
+        let mut conveyor = Conveyor::new(
+            ConveyorProfile {
+                speed_rad_s: settings.speed_rad_s,
+                ripple_fraction: settings.ripple_fraction,
+                ripple_hz: settings.ripple_hz,
+            },
+            settings.counts_per_rev,
+            width,
+            start_raw,
+        )?;
+        // A disc that does not turn needs no stop: the setting is then moot.
+        if let (Some(stop), true) = (settings.stop, settings.speed_rad_s != 0.0) {
+            if settings.ripple_fraction * settings.speed_rad_s.abs() * TAU * settings.ripple_hz
+                >= stop.deceleration_rad_s2
+            {
+                bail!("conveyor.stop.deceleration_rad_s2 must exceed the ripple's acceleration");
+            }
+            // The part's azimuth in the rotating frame, and the robot's in the disc frame.
+            let part_rotating = mean(&workcell.features_rotating);
+            let robot_disc = workcell.disc_from_base(&Vector3::new(
+                0.0,
+                0.0,
+                workcell.base_from_disc_translation_m.z,
+            ));
+            // On the part's circle, the point at a comfortable reach from the base
+            // axis (the nearest point when the circle stays further away): the
+            // operator stops the disc with the part in front of the robot.
+            let (d, r) = (robot_disc.xy().norm(), part_rotating.xy().norm());
+            let cos_off = ((d * d + r * r - STOP_REACH_M * STOP_REACH_M) / (2.0 * d * r.max(1e-9)))
+                .clamp(-1.0, 1.0);
+            let target = robot_disc.y.atan2(robot_disc.x) + cos_off.acos()
+                - part_rotating.y.atan2(part_rotating.x);
+            let min_speed = settings.speed_rad_s.abs() * (1.0 - settings.ripple_fraction);
+            let start_s = stop_instant_for_rest_angle(
+                &conveyor,
+                stop.after_s,
+                stop.deceleration_rad_s2,
+                target,
+                min_speed,
+            )?;
+            conveyor = conveyor.with_stop(ConveyorStop {
+                start_s,
+                deceleration_rad_s2: stop.deceleration_rad_s2,
+            })?;
+        }
+
+        if let Some(change) = experiment.faults.conveyor_change {
+            conveyor = conveyor.with_speed_change(SpeedRamp {
+                start_s: change.at_s,
+                target_rad_s: change.speed_rad_s,
+                acceleration_rad_s2: change.acceleration_rad_s2,
+            })?;
+        }
+        if let Some(missed) = experiment.faults.missed_counts {
+            conveyor = conveyor.with_missed_counts(MissedBurst {
+                at_s: missed.at_s,
+                counts: missed.counts,
+                instant: missed.instant,
+            })?;
+        }
+
+        let camera = CameraSim::new(workcell.camera.clone(), &experiment.camera, camera_seed)?;
+        // Beside the disc, 100 degrees round from it towards the robot's front
+        // (+X), well inside joint 1's range and clear of the disc's footprint.
+        let disc = workcell.base_from_disc_translation_m;
+        let disc_azimuth = disc.y.atan2(disc.x);
+        let away = disc_azimuth - DROP_OFF_TURN_RAD.copysign(disc_azimuth);
+        let drop_off_base = Vector3::new(
+            DROP_OFF_DISTANCE_M * away.cos(),
+            DROP_OFF_DISTANCE_M * away.sin(),
+            DROP_OFF_HEIGHT_M,
+        );
+        Ok(Self {
+            experiment: experiment.clone(),
+            tolerance: GraspTolerance::from_settings(&experiment.gripper),
+            control_period_s: 1.0 / (experiment.robot.control_rate_hz),
+            workcell,
+            plant,
+            encoders,
+            conveyor,
+            camera,
+            ticks: 0,
+            sensor_seq: 0,
+            part: PartState::OnDisc,
+            gripper_closed: false,
+            grasp: None,
+            placed_base: None,
+            last_tau: JointVector::zeros(),
+            drop_off_base,
+            camera_bumped: false,
+            unattended_ticks: 0,
+        })
+    }
+}
