@@ -163,11 +163,19 @@ def parse(image):
             destination = int(target.group(1), 16)
             if target.group(3) is None and destination != current.start:
                 current.calls.add(destination)  # a tail call to another function's start
-    # Data words: handler tables and vtables live in .rodata / .vector_table.
-    dump = subprocess.run(
-        [tool("llvm-objdump"), "-s", "-j", ".rodata", "-j", ".data", image],
-        capture_output=True, text=True,
-    ).stdout
+    # Data words: vtables and task pointers live in .rodata / .data.
+    words += section_words(image, ".rodata", ".data")
+    taken = {w & ~1 for w in words if w & 1 and (w & ~1) in functions}
+    return functions, taken
+
+
+def section_words(image, *sections):
+    """The little-endian 32-bit words of `sections`, from a hex dump."""
+    arguments = [tool("llvm-objdump"), "-s"]
+    for section in sections:
+        arguments += ["-j", section]
+    dump = subprocess.run(arguments + [image], capture_output=True, text=True).stdout
+    words = []
     for line in dump.splitlines():
         fields = line.split()
         if len(fields) < 2 or not re.fullmatch(r"[0-9a-f]+", fields[0]):
@@ -175,22 +183,11 @@ def parse(image):
         for chunk in fields[1:5]:
             if re.fullmatch(r"[0-9a-f]{8}", chunk):
                 words.append(int.from_bytes(bytes.fromhex(chunk), "little"))
-    taken = {w & ~1 for w in words if w & 1 and (w & ~1) in functions}
-    return functions, taken
+    return words
 
 
 def vector_table(image):
-    dump = subprocess.run(
-        [tool("llvm-objdump"), "-s", "-j", ".vector_table", image], capture_output=True, text=True, check=True
-    ).stdout
-    entries = []
-    for line in dump.splitlines():
-        fields = line.split()
-        if len(fields) < 2 or not re.fullmatch(r"[0-9a-f]+", fields[0]):
-            continue
-        for chunk in fields[1:5]:
-            if re.fullmatch(r"[0-9a-f]{8}", chunk):
-                entries.append(int.from_bytes(bytes.fromhex(chunk), "little"))
+    entries = section_words(image, ".vector_table")
     # Entry 0 is the initial stack pointer, entry 1 the reset handler.
     return entries[1] & ~1 if len(entries) > 1 else None, {e & ~1 for e in entries[2:] if e & 1}
 
