@@ -557,6 +557,19 @@ impl PickController {
         self.outbox.pop_front()
     }
 
+    /// Whether the period of a sample stamped `time_us` fires the camera: a
+    /// board that latches its encoders at the trigger edge asks before it
+    /// reads them, so the period's sample is the latched one.
+    pub fn camera_trigger_due(&self, time_us: u64) -> bool {
+        let start_us = self.start_time_us.unwrap_or(time_us);
+        self.trigger_due_at(micros_to_seconds(time_us.saturating_sub(start_us)))
+    }
+
+    /// The one trigger rule, for [`Self::camera_trigger_due`] and the period.
+    fn trigger_due_at(&self, now_s: f32) -> bool {
+        now_s + 1e-6 >= self.next_trigger_s
+    }
+
     /// True when the sample at `time_us` is due to apply a job's result that
     /// has not come yet. A lock-step caller (the emulated board) waits for the
     /// worker before such a sample, so the run is the same at any speed; a
@@ -791,7 +804,7 @@ impl PickController {
 
     /// Fires the camera every period and latches the encoders with the trigger.
     fn camera_trigger(&mut self, sample: &SensorSample, q: &JointVector<f32>) -> Option<u32> {
-        if self.now_s + 1e-6 < self.next_trigger_s {
+        if !self.trigger_due_at(self.now_s) {
             return None;
         }
         let period_s = f32::from(self.cell.config.camera_period_ms) * 1e-3;
@@ -1581,6 +1594,9 @@ impl PickController {
         twist.norm()
     }
 }
+
+#[cfg(test)]
+mod trigger_due_tests;
 
 #[cfg(test)]
 mod tests {
