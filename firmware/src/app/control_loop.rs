@@ -29,7 +29,9 @@ use shared::app::new_report;
 use shared::app::pick::handoff::{ControlEvent, WorkItem};
 use shared::app::pick::settings::PickSettings;
 use shared::app::pick::{PickController, MAX_TICK_MESSAGES};
-use shared::protocol::{FaultCause, GripperCommand, Message, PickPhase, SensorSample};
+use shared::protocol::{
+    FaultCause, GripperCommand, Message, PickPhase, SensorSample, TriggerEvent,
+};
 use shared::safety::{
     check_reconfigure, BoardFault, CellState, DeadlineMonitor, DriveInterlock, EncoderMotion,
     InterlockFault, InterlockOutput, Parking, ParkingInput, ParkingOutput, PeriodInput,
@@ -38,11 +40,11 @@ use shared::safety::{
 
 use super::channels::{
     Configured, COMMANDS, CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, REPORTS, SAMPLES, TRIGGERS,
-    WORK,
+    TRIGGER_EVENTS, WORK,
 };
 use super::phase_log;
 use super::stats;
-use crate::board::{active, fail_safe, ControlSource, CycleCounter, PlantIo, Watchdog};
+use crate::board::{active, fail_safe, BoardError, ControlSource, CycleCounter, PlantIo, Watchdog};
 
 // `CONTROL_RATE_HZ`: the ticker's rate on a real board, the period a
 // deadline is counted against, and the rate `HelloAck` reports. Set at build
@@ -105,6 +107,29 @@ fn hand_on_events(pick: &mut PickController, session: u32) {
     }
 }
 
+/// The pick's settings on this build: the defaults, except that the
+/// emulated board running free allows a longer gap between two periods
+/// ([`FREE_RUN_STALL_LIMIT_S`]).
+fn pick_settings() -> PickSettings {
+    let settings = PickSettings::default();
+    if cfg!(feature = "free-run") {
+        PickSettings {
+            stall_limit_s: FREE_RUN_STALL_LIMIT_S,
+            ..settings
+        }
+    } else {
+        settings
+    }
+}
+
+/// The emulated board running free: the longest gap between two control
+/// periods before the pick stops (`ControlStall`). The host's scheduler can
+/// hold QEMU off for tens of milliseconds on a loaded machine, a gap the
+/// real board's 20 ms limit would stop the pick for; the host's plant holds
+/// the last torque for 100 ms (its drives' watchdog in this mode) before it
+/// brakes, so a gap up to that is one the arm rides out on its last torque.
+pub const FREE_RUN_STALL_LIMIT_S: f32 = 0.1;
+
 /// Replaces the pick for a new configuration. Out of line: the controller
 /// (4.5 KB) is built in this function's frame, not in the task poll's, which
 /// is on the stack in every period. A new configuration keeps the current
@@ -119,7 +144,7 @@ fn configure(
     reported_estimate: &mut u32,
     configured: &Configured,
 ) -> bool {
-    let settings = PickSettings::default();
+    let settings = pick_settings();
     let current = pick.as_ref().map(|(_, controller)| controller);
     match PickController::replacing(current, &configured.config, settings, configured.session) {
         Ok(controller) => {
@@ -220,19 +245,61 @@ fn publish_reconfigure(
     );
 }
 
-/// The next sample: from the link in lock step, from the board's encoders on
-/// the ticker.
+/// The ticker of the control periods, and when its last tick was due.
+struct PeriodClock {
+    ticker: Ticker,
+    period: Duration,
+    due: Instant,
+}
+
+impl PeriodClock {
+    fn new() -> Self {
+        let period = Duration::from_hz(u64::from(CONTROL_RATE_HZ));
+        PeriodClock {
+            ticker: Ticker::every(period),
+            period,
+            due: Instant::now(),
+        }
+    }
+
+    /// Waits for the next period; returns when it started. A tick later than
+    /// one period past its due time (the core was held off: a long
+    /// interrupt, or the host's scheduler holding QEMU off) starts the ticker
+    /// again from now, rather than running the missed periods back to back
+    /// on one reading of the plant.
+    async fn next(&mut self) -> Instant {
+        self.ticker.next().await;
+        self.due += self.period;
+        let now = Instant::now();
+        if now > self.due + self.period {
+            self.ticker.reset();
+            self.due = now;
+        }
+        now
+    }
+}
+
+/// The next sample (and the plant's own time stamp of its counts, when the
+/// plant has a clock: see `PlantReading::plant_time_us`): from the link in
+/// lock step, from the board's encoders on the ticker. On the ticker the time is taken first and `pick` says whether
+/// this period fires the camera, so the board raises the trigger line as it
+/// latches the counts (`PlantIo::read_sample`): the sample the pick pairs
+/// with the trigger is the latched one.
 async fn next_sample(
     source: ControlSource,
-    ticker: &mut Ticker,
+    clock: &mut PeriodClock,
     plant: &mut active::Plant,
-) -> Option<SensorSample> {
+    pick: Option<&PickController>,
+    read_error: &mut Option<BoardError>,
+) -> Option<(SensorSample, Option<u64>)> {
     match source {
-        ControlSource::LockStep => Some(SAMPLES.receive().await),
+        ControlSource::LockStep => Some((SAMPLES.receive().await, None)),
         ControlSource::Ticker => {
-            ticker.next().await;
-            match plant.read_sample() {
+            let time_us = clock.next().await.as_micros();
+            let camera_trigger = pick.is_some_and(|pick| pick.camera_trigger_due(time_us));
+            match plant.read_sample(camera_trigger) {
                 Ok(reading) => {
+                    *read_error = None;
                     // Latched: the interlock turns the drives off this
                     // period and keeps them off until the host acknowledges,
                     // even if the input returns.
@@ -242,16 +309,21 @@ async fn next_sample(
                     if reading.drive_fault {
                         fail_safe::latch(BoardFault::DriveFault);
                     }
-                    Some(SensorSample {
+                    let sample = SensorSample {
                         seq: TICKER_SEQ.fetch_add(1, Ordering::Relaxed),
-                        time_us: Instant::now().as_micros(),
+                        time_us,
                         joint_counts: reading.joint_counts,
                         conveyor_counts: reading.conveyor_counts,
                         part_in_gripper: reading.part_in_gripper,
-                    })
+                    };
+                    Some((sample, reading.plant_time_us))
                 }
                 Err(e) => {
-                    defmt::warn!("control loop: {}", e);
+                    // Once per kind of error, not every period.
+                    if *read_error != Some(e) {
+                        defmt::warn!("control loop: {}", e);
+                    }
+                    *read_error = Some(e);
                     None
                 }
             }
@@ -277,11 +349,19 @@ pub async fn control_loop(
     let mut pick: Option<(u32, PickController)> = None;
     let mut reported_estimate = 0u32;
     let mut last_phase = PickPhase::Idle;
-    let mut ticker = Ticker::every(Duration::from_hz(u64::from(CONTROL_RATE_HZ)));
+    let mut clock = PeriodClock::new();
+    let mut read_error: Option<BoardError> = None;
     // The period's budget in the counter's units at the board's nominal clock.
     let budget = active::CPU_HZ / CONTROL_RATE_HZ;
     loop {
-        let sample = next_sample(source, &mut ticker, &mut plant).await;
+        let sample = next_sample(
+            source,
+            &mut clock,
+            &mut plant,
+            pick.as_ref().map(|(_, controller)| controller),
+            &mut read_error,
+        )
+        .await;
         // Every period, configured or not; the first one arms it.
         watchdog.feed();
         if let Some(configured) = CONTROL_CONFIG.try_take() {
@@ -313,9 +393,17 @@ pub async fn control_loop(
                 speeds = None;
                 parking.restart();
                 deadline = DeadlineMonitor::new();
+                if source == ControlSource::Ticker {
+                    // This period's counts were read for the old pick (its
+                    // trigger decision): the new one starts next period,
+                    // with the drives off (the gate required them off).
+                    plant.disable();
+                    continue;
+                }
             }
         }
-        let (Some(sample), Some((session, controller))) = (sample, pick.as_mut()) else {
+        let (Some((sample, plant_time_us)), Some((session, controller))) = (sample, pick.as_mut())
+        else {
             plant.disable();
             if pick.is_none() {
                 // No pick (none yet, or the last configuration failed to
@@ -348,6 +436,17 @@ pub async fn control_loop(
         let repeated = controller.repeats(&sample);
         let mut command = controller.on_sensor_sample(&sample, &mut extra);
         hand_on_events(controller, *session);
+        if let (ControlSource::Ticker, Some(trigger_id)) = (source, command.camera_trigger) {
+            // The vision side learns the id of the exposure the trigger line
+            // started (in lock step it is in the actuator command).
+            let event = TriggerEvent {
+                trigger_id,
+                time_us: plant_time_us.unwrap_or(sample.time_us),
+            };
+            if TRIGGER_EVENTS.try_send(event).is_err() {
+                stats::count_dropped_message();
+            }
+        }
         let drives = interlock_period(
             &mut interlock,
             &mut motion,
@@ -380,9 +479,7 @@ pub async fn control_loop(
             ControlSource::Ticker if !drives_on => plant.disable(),
             ControlSource::Ticker => {
                 let closed = command.gripper == GripperCommand::Close;
-                if let Err(e) =
-                    plant.apply(&command.joint_torque_nm, closed, command.camera_trigger)
-                {
+                if let Err(e) = plant.apply(&command.joint_torque_nm, closed) {
                     defmt::error!("control loop: {}; drives off", e);
                     controller.stop(FaultCause::ControlFailure);
                 }

@@ -62,10 +62,23 @@ pub enum BoardError {
     /// The board has no such device: the emulated board's encoders and
     /// servos are the simulator's, reached through the link in lock step.
     #[cfg_attr(
-        not(feature = "board-qemu"),
-        allow(dead_code, reason = "only the emulated board lacks its own devices")
+        any(not(feature = "board-qemu"), feature = "free-run"),
+        allow(
+            dead_code,
+            reason = "only the lock-step emulated board lacks its own devices"
+        )
     )]
     NotOnThisBoard { device: &'static str },
+    /// The emulated board running free has had no plant state from the host
+    /// yet (its encoders are the simulated plant's, sent over the link).
+    #[cfg_attr(
+        not(feature = "free-run"),
+        allow(
+            dead_code,
+            reason = "only the free-running emulated board reads a remote plant"
+        )
+    )]
+    NoPlantState,
 }
 
 impl fmt::Display for BoardError {
@@ -83,6 +96,9 @@ impl fmt::Display for BoardError {
                 f,
                 "{device}: not on this board (the simulator's, through the link in lock step)"
             ),
+            BoardError::NoPlantState => {
+                write!(f, "encoders: no plant state from the host's simulator yet")
+            }
         }
     }
 }
@@ -105,6 +121,9 @@ impl defmt::Format for BoardError {
                 "{=str}: not on this board (the simulator's, through the link in lock step)",
                 device
             ),
+            BoardError::NoPlantState => {
+                defmt::write!(f, "encoders: no plant state from the host's simulator yet")
+            }
         }
     }
 }
@@ -136,6 +155,11 @@ pub struct PlantReading {
     pub emergency_stop: bool,
     /// A servo amplifier's fault output is active.
     pub drive_fault: bool,
+    /// The plant's own time stamp of these counts, microseconds, when the
+    /// plant keeps a clock of its own (the emulated board's simulated plant,
+    /// which stamps every state it sends); `None` when the counts are the
+    /// board's own, read now on the controller's clock (the STM32F407).
+    pub plant_time_us: Option<u64>,
 }
 
 /// The plant side of the control loop: encoders in, servo amplifiers, gripper
@@ -144,17 +168,19 @@ pub trait PlantIo {
     /// Joint encoder counts (unwrapped, joint 1 first), the conveyor
     /// encoder's raw hardware counter (it wraps; the controller unwraps it)
     /// and the gripper's part-present switch.
-    fn read_sample(&mut self) -> Result<PlantReading, BoardError>;
+    ///
+    /// With `camera_trigger` the camera trigger line rises here, at the
+    /// instant the counts are latched (the STM32F407: one critical section
+    /// that raises the line and reads every counter back to back), so the
+    /// counts the controller pairs with the trigger are those of the
+    /// exposure. Without it the line goes (or stays) low: a pulse is one
+    /// control period wide.
+    fn read_sample(&mut self, camera_trigger: bool) -> Result<PlantReading, BoardError>;
 
-    /// Drives the servo amplifiers with the joint torques (N m), the gripper,
-    /// and pulses the camera trigger when `camera_trigger` is set. Rejects a
-    /// non-finite torque before any output changes (then the drives are off).
-    fn apply(
-        &mut self,
-        torque_nm: &[f32; JOINTS],
-        gripper_closed: bool,
-        camera_trigger: Option<u32>,
-    ) -> Result<(), BoardError>;
+    /// Drives the servo amplifiers with the joint torques (N m) and the
+    /// gripper. Rejects a non-finite torque before any output changes (then
+    /// the drives are off).
+    fn apply(&mut self, torque_nm: &[f32; JOINTS], gripper_closed: bool) -> Result<(), BoardError>;
 
     /// Stops driving all joints (zero torque, amplifiers disabled) and
     /// engages the holding brakes: an arm without its drives is held only by
@@ -185,6 +211,7 @@ pub trait CycleCounter: Copy {
             shared::protocol::CostUnit::Cycles => "cycles",
             shared::protocol::CostUnit::Instructions => "instructions",
             shared::protocol::CostUnit::NotMeasured => "(not measured)",
+            shared::protocol::CostUnit::Nanoseconds => "ns",
         }
     }
 }

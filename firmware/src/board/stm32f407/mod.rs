@@ -45,6 +45,7 @@ mod clock;
 mod conveyor;
 mod cycles;
 mod encoders;
+mod latch;
 mod plant;
 mod quadrature;
 mod registers;
