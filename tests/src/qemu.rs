@@ -73,6 +73,20 @@ pub fn firmware_elf_path() -> PathBuf {
     target_dir().join("thumbv7em-none-eabihf/firmware/firmware")
 }
 
+/// Env var naming the free-running firmware ELF (the emulated board built
+/// with `--features board-qemu,free-run`).
+pub const FREE_RUN_ELF_ENV: &str = "FIRMWARE_QEMU_FREE_RUN_ELF";
+
+/// The free-running firmware ELF: `$FIRMWARE_QEMU_FREE_RUN_ELF`, else
+/// `firmware/qemu-free-run.elf` under the target directory, where
+/// `scripts/build-firmware` (or `scripts/qemu-free-run`) leaves it.
+pub fn free_run_elf_path() -> PathBuf {
+    if let Some(path) = std::env::var_os(FREE_RUN_ELF_ENV) {
+        return PathBuf::from(path);
+    }
+    target_dir().join("firmware/qemu-free-run.elf")
+}
+
 /// The workspace's cargo target directory: `$CARGO_TARGET_DIR` (relative to
 /// the workspace when relative), else `target/` beside the workspace root.
 pub fn target_dir() -> PathBuf {
@@ -137,6 +151,13 @@ impl QemuBoard {
     /// CPU until a client connects (`wait=on`), so nothing the firmware sends
     /// is lost.
     pub fn start(elf: &Path) -> Result<Self, QemuError> {
+        Self::start_with(elf, &[])
+    }
+
+    /// [`QemuBoard::start`] for the free-running board: no `-icount`, so
+    /// QEMU's virtual clock, the firmware's time and its ticker, follows the
+    /// host's clock, as the free-running plant on the host does.
+    pub fn start_free_running(elf: &Path) -> Result<Self, QemuError> {
         Self::start_with(elf, &[])
     }
 
