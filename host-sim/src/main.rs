@@ -42,6 +42,9 @@ enum Command {
     Accuracy(AccuracyArgs),
     /// Handshake with the controller, exchange frames and check every reply.
     LinkCheck(link::cli::LinkCheckArgs),
+    /// One pick with the plant running free on the host's clock against the
+    /// emulated board built with `free-run` (see scripts/qemu-free-run).
+    FreeRun(host_sim::pick::free_run::FreeRunArgs),
 }
 
 fn main() -> ExitCode {
@@ -55,6 +58,7 @@ fn main() -> ExitCode {
         Some(Command::Record(args)) => run_record(args),
         Some(Command::Calibrate(args)) => run_calibrate(args),
         Some(Command::Accuracy(args)) => run_accuracy(args),
+        Some(Command::FreeRun(args)) => host_sim::pick::free_run::run_free_command(args),
         Some(Command::LinkCheck(args)) => {
             link::cli::run(args).map_err(|e| anyhow::anyhow!("link-check failed: {e}"))
         }

@@ -74,10 +74,14 @@ impl Session {
                 }
                 None
             }
-            // Running free: the newest state of the host's plant, for the
-            // board's plant to read (`board::qemu::free_run`).
+            // Running free, once configured: the newest state of the host's
+            // plant, for the board's plant to read (`board::qemu::free_run`).
+            // Before that a sample is a data frame like any other
+            // (acknowledged, so `host-sim link-check` works on this board).
             #[cfg(feature = "free-run")]
-            Message::SensorSample(sample) if open && self.source == ControlSource::Ticker => {
+            Message::SensorSample(sample)
+                if open && self.pairer.is_some() && self.source == ControlSource::Ticker =>
+            {
                 self.responder.count_received();
                 crate::board::active::free_run::deliver_state(sample);
                 None

@@ -392,6 +392,57 @@ fn runtime_report<L: ByteLink>(link: &mut FramedLink<L>) -> Option<RuntimeReport
     None
 }
 
+/// `host-sim free-run`: one pick with the plant running free against the
+/// emulated board built with `free-run` (`scripts/qemu-free-run` starts it).
+#[derive(clap::Args, Debug, Clone)]
+pub struct FreeRunArgs {
+    /// The emulated board's UART0 socket.
+    #[arg(long, default_value = "127.0.0.1:4321")]
+    pub tcp: String,
+    /// The experiment of the embedded default scenario.
+    #[arg(long, default_value = "experiment-2-7cm")]
+    pub experiment: String,
+    /// The world's seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+/// Runs `host-sim free-run`: prints the outcome and what crossed the link.
+pub fn run_free_command(args: &FreeRunArgs) -> Result<()> {
+    let experiment = super::scenario::PickScenarioFile::embedded_default()?
+        .experiment(&args.experiment)?
+        .clone();
+    let tcp = crate::link::TcpLink::connect(&args.tcp, Duration::from_secs(10))?;
+    let mut link = FramedLink::new(tcp);
+    let run = run_free(
+        &experiment,
+        args.seed,
+        &mut link,
+        &FreeRunSettings::default(),
+    )?;
+    println!(
+        "{} seed {}: {:?} after {:.1} s of plant time, {:.1} s of wall time",
+        args.experiment, args.seed, run.result, run.duration_s, run.wall_s
+    );
+    for phase in &run.phases {
+        println!("  {:7.2} s  {:?}", phase.t_s, phase.phase);
+    }
+    if let Some(grasp) = &run.grasp {
+        println!(
+            "grasp: succeeded {}, error {:?} m, yaw error {:.4} rad",
+            grasp.succeeded, grasp.position_error_m, grasp.yaw_error_rad
+        );
+    }
+    println!("{:?}", run.counts);
+    if let Some(runtime) = &run.runtime {
+        println!("{runtime:?}");
+    }
+    if run.result != PickResult::Success {
+        bail!("the pick did not succeed: {:?}", run.result);
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
