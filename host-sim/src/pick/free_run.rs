@@ -459,9 +459,9 @@ mod tests {
             command: Some((command, 2.0)),
             watchdog_s: 0.1,
         };
-        assert_eq!(drives.fresh(2.05), Some(&command));
-        assert_eq!(drives.fresh(2.1), Some(&command));
-        assert_eq!(drives.fresh(2.1001), None);
+        assert_eq!(drives.fresh(2.0), Some(&command));
+        assert_eq!(drives.fresh(2.099), Some(&command));
+        assert_eq!(drives.fresh(2.101), None);
         let none = Drives {
             command: None,
             watchdog_s: 0.1,
