@@ -1,8 +1,10 @@
 //! The control loop, at the highest priority: once per period it takes a
-//! sensor sample (the board's encoders on a ticker, or the simulator's frame in
-//! lock step), runs the pick's control part (fusion Eq 1, the state machine,
-//! Eq 23), and drives the outputs (the board's servos, gripper and camera
-//! trigger, or an actuator-command frame in lock step). It hands triggers to
+//! sensor sample (on a ticker the board's encoders, latched with the camera
+//! trigger's edge when the period fires the camera; in lock step the
+//! simulator's frame), runs the pick's control part (fusion Eq 1, the state
+//! machine, Eq 23), and drives the outputs (the board's servos and gripper,
+//! or an actuator-command frame in lock step); on a ticker it tells the
+//! vision side each trigger's id (`TriggerEvent`). It hands triggers to
 //! the link's frame pairer and jobs to the worker without ever waiting for
 //! them, and measures its own cost.
 //!
@@ -199,7 +201,7 @@ fn interlock_period(
 fn parking_period(
     parking: &mut Parking,
     source: ControlSource,
-    sample: &SensorSample,
+    now_us: u64,
     phase: PickPhase,
     speeds: Option<[f32; 6]>,
 ) -> ParkingOutput {
@@ -212,10 +214,10 @@ fn parking_period(
     let at_rest = speeds.is_some_and(|qd| qd.iter().all(|v| v.abs() <= REST_SPEED_RAD_S));
     let before = parking.state();
     let output = parking.period(&ParkingInput {
-        time_us: sample.time_us,
+        time_us: now_us,
         pick_ended: matches!(phase, PickPhase::Done | PickPhase::Faulted),
         at_rest,
-        since_host_frame_us: (sample.time_us as u32)
+        since_host_frame_us: (now_us as u32)
             .wrapping_sub(LAST_HOST_FRAME_US.load(Ordering::Relaxed)),
     });
     if parking.state() != before {
@@ -279,27 +281,65 @@ impl PeriodClock {
     }
 }
 
-/// The next sample (and the plant's own time stamp of its counts, when the
-/// plant has a clock: see `PlantReading::plant_time_us`): from the link in
-/// lock step, from the board's encoders on the ticker. On the ticker the time is taken first and `pick` says whether
-/// this period fires the camera, so the board raises the trigger line as it
-/// latches the counts (`PlantIo::read_sample`): the sample the pick pairs
-/// with the trigger is the latched one.
+/// What a period starts with.
+enum Reading {
+    /// A new sample, and the period's start on the controller's clock (in
+    /// lock step the sample's own time).
+    Sample { sample: SensorSample, now_us: u64 },
+    /// The plant could not be read (logged once): the drives go off.
+    Failed,
+    /// The plant has nothing newer than the last sample (the emulated board
+    /// running free, before the host's next state): no period runs, the
+    /// last command stands.
+    Unchanged,
+}
+
+/// What the ticker's reads remember between periods.
+struct TickerReads {
+    /// The last read's error, logged once until a read succeeds.
+    error: Option<BoardError>,
+    /// The last sample's time: a reading not newer is no new sample.
+    last_time_us: Option<u64>,
+}
+
+/// The next sample: from the link in lock step, from the board's encoders on
+/// the ticker. On the ticker the instant of the counts comes first
+/// (`PlantIo::reading_time_us`: the period's start on the STM32F407, the
+/// plant state's own stamp on the emulated board running free) and `pick`
+/// says whether that instant fires the camera, so the board raises the
+/// trigger line as it latches the counts (`PlantIo::read_sample`): the sample
+/// the pick pairs with the trigger is the latched one, stamped with its
+/// instant.
 async fn next_sample(
     source: ControlSource,
     clock: &mut PeriodClock,
     plant: &mut active::Plant,
     pick: Option<&PickController>,
-    read_error: &mut Option<BoardError>,
-) -> Option<(SensorSample, Option<u64>)> {
+    reads: &mut TickerReads,
+) -> Reading {
     match source {
-        ControlSource::LockStep => Some((SAMPLES.receive().await, None)),
+        ControlSource::LockStep => {
+            let sample = SAMPLES.receive().await;
+            Reading::Sample {
+                now_us: sample.time_us,
+                sample,
+            }
+        }
         ControlSource::Ticker => {
-            let time_us = clock.next().await.as_micros();
-            let camera_trigger = pick.is_some_and(|pick| pick.camera_trigger_due(time_us));
-            match plant.read_sample(camera_trigger) {
-                Ok(reading) => {
-                    *read_error = None;
+            let now_us = clock.next().await.as_micros();
+            let reading = plant.reading_time_us(now_us).and_then(|time_us| {
+                if reads.last_time_us.is_some_and(|last| time_us <= last) {
+                    return Ok(None);
+                }
+                let camera_trigger = pick.is_some_and(|pick| pick.camera_trigger_due(time_us));
+                plant
+                    .read_sample(camera_trigger)
+                    .map(|reading| Some((time_us, reading)))
+            });
+            match reading {
+                Ok(Some((time_us, reading))) => {
+                    reads.error = None;
+                    reads.last_time_us = Some(time_us);
                     // Latched: the interlock turns the drives off this
                     // period and keeps them off until the host acknowledges,
                     // even if the input returns.
@@ -316,15 +356,16 @@ async fn next_sample(
                         conveyor_counts: reading.conveyor_counts,
                         part_in_gripper: reading.part_in_gripper,
                     };
-                    Some((sample, reading.plant_time_us))
+                    Reading::Sample { sample, now_us }
                 }
+                Ok(None) => Reading::Unchanged,
                 Err(e) => {
                     // Once per kind of error, not every period.
-                    if *read_error != Some(e) {
+                    if reads.error != Some(e) {
                         defmt::warn!("control loop: {}", e);
                     }
-                    *read_error = Some(e);
-                    None
+                    reads.error = Some(e);
+                    Reading::Failed
                 }
             }
         }
@@ -350,20 +391,28 @@ pub async fn control_loop(
     let mut reported_estimate = 0u32;
     let mut last_phase = PickPhase::Idle;
     let mut clock = PeriodClock::new();
-    let mut read_error: Option<BoardError> = None;
+    let mut reads = TickerReads {
+        error: None,
+        last_time_us: None,
+    };
     // The period's budget in the counter's units at the board's nominal clock.
     let budget = active::CPU_HZ / CONTROL_RATE_HZ;
     loop {
-        let sample = next_sample(
+        let reading = next_sample(
             source,
             &mut clock,
             &mut plant,
             pick.as_ref().map(|(_, controller)| controller),
-            &mut read_error,
+            &mut reads,
         )
         .await;
         // Every period, configured or not; the first one arms it.
         watchdog.feed();
+        let sample = match reading {
+            Reading::Sample { sample, now_us } => Some((sample, now_us)),
+            Reading::Failed => None,
+            Reading::Unchanged => continue,
+        };
         if let Some(configured) = CONTROL_CONFIG.try_take() {
             // Measured on its own: it runs with the arm at rest (the link
             // accepted it through the reconfiguration gate), so it is not
@@ -402,8 +451,7 @@ pub async fn control_loop(
                 }
             }
         }
-        let (Some((sample, plant_time_us)), Some((session, controller))) = (sample, pick.as_mut())
-        else {
+        let (Some((sample, now_us)), Some((session, controller))) = (sample, pick.as_mut()) else {
             plant.disable();
             if pick.is_none() {
                 // No pick (none yet, or the last configuration failed to
@@ -424,7 +472,7 @@ pub async fn control_loop(
         }
         let started = cycles.now();
         if source == ControlSource::Ticker
-            && (sample.time_us as u32).wrapping_sub(LAST_HOST_FRAME_US.load(Ordering::Relaxed))
+            && (now_us as u32).wrapping_sub(LAST_HOST_FRAME_US.load(Ordering::Relaxed))
                 > LINK_TIMEOUT_US
         {
             controller.stop(FaultCause::LinkLost);
@@ -441,7 +489,7 @@ pub async fn control_loop(
             // started (in lock step it is in the actuator command).
             let event = TriggerEvent {
                 trigger_id,
-                time_us: plant_time_us.unwrap_or(sample.time_us),
+                time_us: sample.time_us,
             };
             if TRIGGER_EVENTS.try_send(event).is_err() {
                 stats::count_dropped_message();
@@ -467,7 +515,7 @@ pub async fn control_loop(
             }
         }
         command.joint_torque_nm = drives.torque_nm;
-        let park = parking_period(&mut parking, source, &sample, controller.phase(), speeds);
+        let park = parking_period(&mut parking, source, now_us, controller.phase(), speeds);
         let drives_on = drives.enable && park.drives_allowed;
         publish_reconfigure(controller, speeds, drives_on, source);
         match source {

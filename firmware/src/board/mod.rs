@@ -136,8 +136,11 @@ impl<T: embedded_io_async::Read + embedded_io_async::Write> SerialLink for T {}
 /// Where the control loop's sensor samples come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum ControlSource {
-    /// A fixed-rate ticker; the loop reads the board's own encoders
-    /// ([`PlantIo::read_sample`]) and drives its own outputs (real hardware).
+    /// A fixed-rate ticker; the loop reads its plant's encoders
+    /// ([`PlantIo::read_sample`]) and drives its outputs whenever its own
+    /// clock says, whatever the plant does (the STM32F407's own devices; the
+    /// emulated board built with `free-run`, whose plant is a simulator on
+    /// the host running free on the host's clock).
     Ticker,
     /// Lock step with a simulated plant: every `SensorSample` frame from the
     /// link is one control period, answered with an `ActuatorCommand` frame
@@ -155,16 +158,22 @@ pub struct PlantReading {
     pub emergency_stop: bool,
     /// A servo amplifier's fault output is active.
     pub drive_fault: bool,
-    /// The plant's own time stamp of these counts, microseconds, when the
-    /// plant keeps a clock of its own (the emulated board's simulated plant,
-    /// which stamps every state it sends); `None` when the counts are the
-    /// board's own, read now on the controller's clock (the STM32F407).
-    pub plant_time_us: Option<u64>,
 }
 
 /// The plant side of the control loop: encoders in, servo amplifiers, gripper
 /// and camera trigger out. Called only from the control loop, once per period.
 pub trait PlantIo {
+    /// When the counts the next [`read_sample`](PlantIo::read_sample)
+    /// returns were true, microseconds, on the clock the period's sample is
+    /// stamped with: `now_us`, the period's start on the controller's clock,
+    /// for a board that reads its own encoders now (the STM32F407); the
+    /// plant's own stamp of its newest state for a plant that sends its state
+    /// over the link (the emulated board running free), which `read_sample`
+    /// then returns. The control loop decides the camera trigger on this
+    /// instant, so the sample paired with a trigger carries the instant of
+    /// its counts.
+    fn reading_time_us(&mut self, now_us: u64) -> Result<u64, BoardError>;
+
     /// Joint encoder counts (unwrapped, joint 1 first), the conveyor
     /// encoder's raw hardware counter (it wraps; the controller unwraps it)
     /// and the gripper's part-present switch.

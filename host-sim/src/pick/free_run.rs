@@ -61,7 +61,7 @@ impl Default for FreeRunSettings {
         FreeRunSettings {
             // One state per period of the emulated board's 250 Hz.
             state_period_s: 0.004,
-            states_in_flight: 3,
+            states_in_flight: 4,
             drive_watchdog_s: 0.1,
             settle_after_end_s: 1.0,
             wall_limit: Duration::from_secs(600),
@@ -271,7 +271,11 @@ pub fn run_free<L: ByteLink>(
         let now_s = world.time_s();
         // The state, when due and the link is not backed up.
         if now_s >= next_state_s {
-            next_state_s = now_s + settings.state_period_s;
+            // On a fixed schedule; after a gap (the host held off) from now.
+            next_state_s += settings.state_period_s;
+            if next_state_s <= now_s {
+                next_state_s = now_s + settings.state_period_s;
+            }
             let unanswered = match (last_state_seq, answered_seq) {
                 (Some(sent), Some(answered)) => sent.wrapping_sub(answered),
                 _ => 0,

@@ -17,11 +17,17 @@
 //!   sent: the host's drives then brake the arm when their watchdog runs out,
 //!   as amplifiers whose enable dropped leave the arm to its brakes.
 //!
-//! The camera trigger's edge is the latch of the state read in that period:
-//! the control loop sends its `TriggerEvent` with the state's own time stamp
-//! ([`PlantReading::plant_time_us`]), and the host's camera exposes the scene
-//! of exactly that state, so the counts paired with the frame are the
-//! exposure's, as on the real board.
+//! A period's sample carries the state's own time stamp (the instant of its
+//! counts, [`PlantIo::reading_time_us`]), not the period's start: the
+//! state's age varies with the link (a few milliseconds, tens when the host
+//! holds QEMU off), and speeds differenced over a few periods would take
+//! that variation for motion. A period that finds no state newer than the
+//! last one's runs nothing (the control loop skips it; the host's drives
+//! hold the last command). The camera trigger's edge is the latch of the
+//! state read in that period: the control loop's `TriggerEvent` carries the
+//! state's stamp, and the host's camera exposes the scene of exactly that
+//! state, so the counts paired with the frame are the exposure's, as on the
+//! real board.
 
 use core::cell::Cell;
 
@@ -54,6 +60,9 @@ pub fn deliver_state(sample: &SensorSample) {
 
 /// The simulated plant behind the link.
 pub struct FreeRunPlant {
+    /// The state `reading_time_us` found, which `read_sample` returns (the
+    /// link task, at a lower priority, cannot replace it in between).
+    pending: Option<SensorSample>,
     /// The sequence number of the state read last (echoed in the commands,
     /// so the host can bound the states in flight).
     last_seq: u32,
@@ -61,15 +70,30 @@ pub struct FreeRunPlant {
 
 impl FreeRunPlant {
     pub(super) fn take() -> Self {
-        FreeRunPlant { last_seq: 0 }
+        FreeRunPlant {
+            pending: None,
+            last_seq: 0,
+        }
+    }
+
+    fn newest() -> Result<SensorSample, BoardError> {
+        PLANT_STATE.lock(Cell::get).ok_or(BoardError::NoPlantState)
     }
 }
 
 impl PlantIo for FreeRunPlant {
+    /// The newest state's own time stamp (the plant's clock).
+    fn reading_time_us(&mut self, _now_us: u64) -> Result<u64, BoardError> {
+        let state = Self::newest()?;
+        self.pending = Some(state);
+        Ok(state.time_us)
+    }
+
     fn read_sample(&mut self, _camera_trigger: bool) -> Result<PlantReading, BoardError> {
-        let state = PLANT_STATE
-            .lock(Cell::get)
-            .ok_or(BoardError::NoPlantState)?;
+        let state = match self.pending.take() {
+            Some(state) => state,
+            None => Self::newest()?,
+        };
         self.last_seq = state.seq;
         Ok(PlantReading {
             joint_counts: state.joint_counts,
@@ -77,7 +101,6 @@ impl PlantIo for FreeRunPlant {
             part_in_gripper: state.part_in_gripper,
             emergency_stop: false,
             drive_fault: false,
-            plant_time_us: Some(state.time_us),
         })
     }
 

@@ -42,6 +42,10 @@ impl LockStepPlant {
 
 #[cfg(not(feature = "free-run"))]
 impl PlantIo for LockStepPlant {
+    fn reading_time_us(&mut self, _now_us: u64) -> Result<u64, BoardError> {
+        Err(BoardError::NotOnThisBoard { device: "encoders" })
+    }
+
     fn read_sample(&mut self, _camera_trigger: bool) -> Result<PlantReading, BoardError> {
         Err(BoardError::NotOnThisBoard { device: "encoders" })
     }

@@ -164,6 +164,11 @@ impl LatchHardware for TriggerAndCounters<'_> {
 }
 
 impl PlantIo for Stm32Plant {
+    /// The encoders are read now: the period's start.
+    fn reading_time_us(&mut self, now_us: u64) -> Result<u64, BoardError> {
+        Ok(now_us)
+    }
+
     fn read_sample(&mut self, camera_trigger: bool) -> Result<PlantReading, BoardError> {
         // One critical section: the trigger edge, then every counter, with
         // no interrupt between them (the skew is in firmware/README.md).
@@ -185,7 +190,6 @@ impl PlantIo for Stm32Plant {
             part_in_gripper: self.part_present.is_high(),
             emergency_stop: self.emergency_stop_ok.is_low(),
             drive_fault: self.drive_fault_n.is_low(),
-            plant_time_us: None,
         })
     }
 
