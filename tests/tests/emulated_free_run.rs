@@ -12,8 +12,11 @@
 //!
 //! On a loaded machine: the plant catches up with the wall clock when the
 //! host falls behind (it never waits), the firmware restarts its ticker
-//! after a gap rather than bursting, its pick tolerates gaps up to 0.1 s and
-//! the plant's drives hold the last torque that long. The test asserts the
+//! after a gap rather than bursting, its samples carry the instant of their
+//! counts (a late state is not taken for motion), its pick tolerates gaps up
+//! to 0.2 s and the plant's drives hold the last torque that long. Passed
+//! alone, beside the lock-step emulated pick, and beside two busy loops on
+//! the 2-core development machine (firmware/README.md). The test asserts the
 //! pick's outcome, never a timing; the wall time (about the pick's 60-odd
 //! simulated seconds) is reported.
 
@@ -28,6 +31,11 @@ use shared::protocol::{CostUnit, PickPhase};
 /// the 7 cm part (the conveyor stops before the pick).
 const EXPERIMENT: &str = "experiment-2-7cm";
 const SEED: u64 = 1;
+/// Plant seconds per wall-clock second. The plant runs at half the wall
+/// clock's rate: still free (it never waits for the controller), with twice
+/// the margin in the plant's time for a controller that a loaded host holds
+/// off (the pick takes about two minutes of wall time).
+const TIME_SCALE: f64 = 0.5;
 
 fn summary(run: &FreeRunPick) -> String {
     format!(
@@ -55,11 +63,14 @@ fn the_emulated_firmware_on_its_own_ticker_picks_from_a_free_running_plant() {
     let mut board = QemuBoard::start_free_running(&elf).unwrap_or_else(|e| panic!("{e}"));
     let tcp = board.connect_uart();
     let mut link = FramedLink::new(tcp);
-    let run =
-        run_free(&experiment, SEED, &mut link, &FreeRunSettings::default()).unwrap_or_else(|e| {
-            board.check_running().unwrap_or_else(|q| panic!("{q}"));
-            panic!("the free-running pick: {e:#}")
-        });
+    let settings = FreeRunSettings {
+        time_scale: TIME_SCALE,
+        ..FreeRunSettings::default()
+    };
+    let run = run_free(&experiment, SEED, &mut link, &settings).unwrap_or_else(|e| {
+        board.check_running().unwrap_or_else(|q| panic!("{q}"));
+        panic!("the free-running pick: {e:#}")
+    });
     board.check_running().unwrap_or_else(|e| panic!("{e}"));
     let report = summary(&run);
     eprintln!("free run: {report}");

@@ -128,9 +128,9 @@ fn pick_settings() -> PickSettings {
 /// periods before the pick stops (`ControlStall`). The host's scheduler can
 /// hold QEMU off for tens of milliseconds on a loaded machine, a gap the
 /// real board's 20 ms limit would stop the pick for; the host's plant holds
-/// the last torque for 100 ms (its drives' watchdog in this mode) before it
+/// the last torque for 200 ms (its drives' watchdog in this mode) before it
 /// brakes, so a gap up to that is one the arm rides out on its last torque.
-pub const FREE_RUN_STALL_LIMIT_S: f32 = 0.1;
+pub const FREE_RUN_STALL_LIMIT_S: f32 = 0.2;
 
 /// Replaces the pick for a new configuration. Out of line: the controller
 /// (4.5 KB) is built in this function's frame, not in the task poll's, which

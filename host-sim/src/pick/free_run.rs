@@ -54,6 +54,13 @@ pub struct FreeRunSettings {
     /// The run's wall-clock limit (the experiment's time limit applies to
     /// plant time as well).
     pub wall_limit: Duration,
+    /// Plant seconds per second of the host's clock: 1 runs the plant in
+    /// real time; below 1 it runs slower than the wall clock (still free:
+    /// it never waits), which gives a controller held off by a loaded host
+    /// that much more margin in the plant's time. The controller stamps its
+    /// samples with the plant's own time stamps, so its pick runs on the
+    /// plant's time either way.
+    pub time_scale: f64,
 }
 
 impl Default for FreeRunSettings {
@@ -62,9 +69,10 @@ impl Default for FreeRunSettings {
             // One state per period of the emulated board's 250 Hz.
             state_period_s: 0.004,
             states_in_flight: 4,
-            drive_watchdog_s: 0.1,
+            drive_watchdog_s: 0.2,
             settle_after_end_s: 1.0,
             wall_limit: Duration::from_secs(600),
+            time_scale: 1.0,
         }
     }
 }
@@ -86,8 +94,8 @@ pub struct FreeRunCounts {
     /// The controller's own counts from its last telemetry.
     pub frames_paired: u32,
     pub frames_unpaired: u32,
-    /// The largest lag of the plant behind the wall clock, seconds (how far
-    /// the host fell behind real time and caught up).
+    /// The largest lag of the plant behind the (scaled) wall clock, seconds
+    /// of plant time (how far the host fell behind and caught up).
     pub max_plant_lag_s: f64,
     /// The longest plant time between two commands while commands flowed, s.
     pub max_command_gap_s: f64,
@@ -228,7 +236,7 @@ pub fn run_free<L: ByteLink>(
     let started = Instant::now();
 
     loop {
-        let wall_s = started.elapsed().as_secs_f64();
+        let wall_s = started.elapsed().as_secs_f64() * settings.time_scale;
         let now_s = world.time_s();
         if now_s > experiment.time_limit_s
             || ended_at.is_some_and(|t| now_s - t > settings.settle_after_end_s)
@@ -409,6 +417,9 @@ pub struct FreeRunArgs {
     /// The world's seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Plant seconds per wall-clock second (1: real time).
+    #[arg(long, default_value_t = 1.0)]
+    pub time_scale: f64,
 }
 
 /// Runs `host-sim free-run`: prints the outcome and what crossed the link.
@@ -418,12 +429,17 @@ pub fn run_free_command(args: &FreeRunArgs) -> Result<()> {
         .clone();
     let tcp = crate::link::TcpLink::connect(&args.tcp, Duration::from_secs(10))?;
     let mut link = FramedLink::new(tcp);
-    let run = run_free(
-        &experiment,
-        args.seed,
-        &mut link,
-        &FreeRunSettings::default(),
-    )?;
+    if !(args.time_scale > 0.0 && args.time_scale <= 1.0) {
+        bail!(
+            "--time-scale {} is out of range: it must be above 0 and at most 1",
+            args.time_scale
+        );
+    }
+    let settings = FreeRunSettings {
+        time_scale: args.time_scale,
+        ..FreeRunSettings::default()
+    };
+    let run = run_free(&experiment, args.seed, &mut link, &settings)?;
     println!(
         "{} seed {}: {:?} after {:.1} s of plant time, {:.1} s of wall time",
         args.experiment, args.seed, run.result, run.duration_s, run.wall_s
