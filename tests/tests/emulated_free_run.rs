@@ -10,15 +10,16 @@
 //! time and ticker) follows the host's clock, as the plant does. The firmware
 //! runs at 250 Hz in this build (the emulated UART carries 15 to 25 KB/s).
 //!
-//! On a loaded machine: the plant catches up with the wall clock when the
-//! host falls behind (it never waits), the firmware restarts its ticker
-//! after a gap rather than bursting, its samples carry the instant of their
-//! counts (a late state is not taken for motion), its pick tolerates gaps up
-//! to 0.2 s and the plant's drives hold the last torque that long. Passed
-//! alone, beside the lock-step emulated pick, and beside two busy loops on
-//! the 2-core development machine (firmware/README.md). The test asserts the
-//! pick's outcome, never a timing; the wall time (about the pick's 60-odd
-//! simulated seconds) is reported.
+//! On a loaded machine: the plant runs at half the wall clock's rate
+//! ([`TIME_SCALE`]) and catches up with it when the host falls behind (it
+//! never waits); the firmware restarts its ticker after a gap rather than
+//! bursting, its samples carry the instant of their counts (a late state is
+//! not taken for motion), its pick tolerates gaps up to 0.2 s and the
+//! plant's drives hold the last torque that long. A run the host starved
+//! (commands further apart than [`STARVED_COMMAND_GAP_S`]) that failed is
+//! run again, at most [`ATTEMPTS`] in all, each attempt reported; a failure
+//! without starvation fails at once. The test asserts the pick's outcome,
+//! never a timing; the wall time (about two minutes a run) is reported.
 
 use host_sim::link::FramedLink;
 use host_sim::pick::free_run::{run_free, FreeRunPick, FreeRunSettings};
@@ -34,8 +35,21 @@ const SEED: u64 = 1;
 /// Plant seconds per wall-clock second. The plant runs at half the wall
 /// clock's rate: still free (it never waits for the controller), with twice
 /// the margin in the plant's time for a controller that a loaded host holds
-/// off (the pick takes about two minutes of wall time).
+/// off (a pick takes about two minutes of wall time).
 const TIME_SCALE: f64 = 0.5;
+
+/// A run whose commands once came further apart than this (plant time; the
+/// controller answers every 4 ms state) was starved by the host: its
+/// controller was held off for tens of periods, and the pick may stop on
+/// its JointEncoder or TrackingError checks (the arm did not follow what was
+/// commanded). On the development machine every run that failed had
+/// commands 50 ms or more apart (beside two busy loops, one per core, at
+/// time scales 1, 0.5 and 0.25); runs that succeeded saw 16 to 93 ms.
+const STARVED_COMMAND_GAP_S: f64 = 0.04;
+
+/// Runs in all when a failed run was starved: a pick that fails unstarved
+/// fails the test at once.
+const ATTEMPTS: usize = 3;
 
 fn summary(run: &FreeRunPick) -> String {
     format!(
@@ -54,8 +68,8 @@ fn summary(run: &FreeRunPick) -> String {
     )
 }
 
-#[test]
-fn the_emulated_firmware_on_its_own_ticker_picks_from_a_free_running_plant() {
+/// One pick against a freshly booted free-running firmware.
+fn one_free_run() -> FreeRunPick {
     let experiment = PickScenarioFile::embedded_default()
         .and_then(|file| file.experiment(EXPERIMENT).cloned())
         .unwrap_or_else(|e| panic!("{e:#}"));
@@ -72,8 +86,33 @@ fn the_emulated_firmware_on_its_own_ticker_picks_from_a_free_running_plant() {
         panic!("the free-running pick: {e:#}")
     });
     board.check_running().unwrap_or_else(|e| panic!("{e}"));
+    run
+}
+
+#[test]
+fn the_emulated_firmware_on_its_own_ticker_picks_from_a_free_running_plant() {
+    let mut attempt = 1;
+    let run = loop {
+        let run = one_free_run();
+        let report = summary(&run);
+        eprintln!("free run, attempt {attempt}: {report}");
+        let starved = run.counts.max_command_gap_s > STARVED_COMMAND_GAP_S;
+        if run.result == PickResult::Success || !starved {
+            break run;
+        }
+        assert!(
+            attempt < ATTEMPTS,
+            "every one of {ATTEMPTS} runs was starved by the host (commands {:.0} ms apart \
+             in the last): {report}",
+            run.counts.max_command_gap_s * 1e3
+        );
+        eprintln!(
+            "attempt {attempt} was starved (commands {:.0} ms apart): running again",
+            run.counts.max_command_gap_s * 1e3
+        );
+        attempt += 1;
+    };
     let report = summary(&run);
-    eprintln!("free run: {report}");
 
     // The camera was fired by trigger events, each exposing a state the
     // plant still kept, and the controller paired the frames with them.

@@ -68,7 +68,11 @@ impl Default for FreeRunSettings {
         FreeRunSettings {
             // One state per period of the emulated board's 250 Hz.
             state_period_s: 0.004,
-            states_in_flight: 4,
+            // A guard against bytes queueing up on a saturated link (16
+            // states are 64 ms of plant time), not a pace: holding states
+            // back when commands come late starves a late controller of
+            // fresh states and makes the gap longer.
+            states_in_flight: 16,
             drive_watchdog_s: 0.2,
             settle_after_end_s: 1.0,
             wall_limit: Duration::from_secs(600),
