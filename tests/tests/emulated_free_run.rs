@@ -43,9 +43,9 @@ const TIME_SCALE: f64 = 0.5;
 /// controller was held off for tens of periods, and the pick may stop on
 /// its JointEncoder or TrackingError checks (the arm did not follow what was
 /// commanded). On the development machine every run that failed had
-/// commands 50 ms or more apart (beside two busy loops, one per core, at
+/// commands 40 ms or more apart (beside two busy loops, one per core, at
 /// time scales 1, 0.5 and 0.25); runs that succeeded saw 16 to 93 ms.
-const STARVED_COMMAND_GAP_S: f64 = 0.04;
+const STARVED_COMMAND_GAP_S: f64 = 0.03;
 
 /// Runs in all when a failed run was starved: a pick that fails unstarved
 /// fails the test at once.
