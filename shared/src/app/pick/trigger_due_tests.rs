@@ -14,7 +14,7 @@ fn the_trigger_asked_for_before_a_period_is_the_one_the_period_fires() {
     let mut controller = PickController::new(&config, PickSettings::default(), 1)
         .unwrap_or_else(|e| panic!("{}", e.field));
     // Irregular periods (a ticker on a loaded emulator): 1 to 9 ms, from a
-    // start that is not a multiple of anything, for 3 s of camera periods.
+    // start that is not a multiple of anything, for about 5 s.
     let mut time_us = 1_234_567_u64;
     let mut fired = 0;
     for seq in 0..1_000u32 {
