@@ -1,7 +1,8 @@
 //! Selects the board's memory map and linker scripts, and the control rate.
 //!
 //! The control loop's rate is a build setting: `FIRMWARE_CONTROL_RATE_HZ`
-//! (1,000 to 10,000 Hz, 1,000 when unset), written into `OUT_DIR/control_rate.rs`.
+//! (1,000 to 10,000 Hz, 1,000 when unset; with the `free-run` feature 100 to
+//! 10,000 Hz, 250 when unset), written into `OUT_DIR/control_rate.rs`.
 //!
 //! The top-level `memory.x` only says `INCLUDE board-memory.x`; this script
 //! writes the selected board's map under that name into `OUT_DIR` and puts
@@ -15,20 +16,34 @@ use std::{env, fs, path::PathBuf};
 /// periods at 1 kHz) leave too few periods.
 const CONTROL_RATE_RANGE_HZ: std::ops::RangeInclusive<u32> = 1_000..=10_000;
 
+/// The emulated board running free (`free-run`): every period moves a plant
+/// state (about 45 bytes) in and a command (about 40) out over QEMU's UART,
+/// which carries 15 to 25 KB/s, so 1 kHz does not fit; 250 Hz uses about half
+/// of it each way. The firmware gives the pick a longer stall limit in this
+/// build (`control_loop::FREE_RUN_STALL_LIMIT_S`), so 100 Hz is the floor.
+const FREE_RUN_RATE_RANGE_HZ: std::ops::RangeInclusive<u32> = 100..=10_000;
+const FREE_RUN_DEFAULT_RATE_HZ: u32 = 250;
+
 /// `FIRMWARE_CONTROL_RATE_HZ` checked, or the reason it is refused.
 fn control_rate_hz() -> Result<u32, String> {
+    let free_run = env::var_os("CARGO_FEATURE_FREE_RUN").is_some();
+    let (range, default) = if free_run {
+        (FREE_RUN_RATE_RANGE_HZ, FREE_RUN_DEFAULT_RATE_HZ)
+    } else {
+        (CONTROL_RATE_RANGE_HZ, 1_000)
+    };
     let Some(text) = env::var_os("FIRMWARE_CONTROL_RATE_HZ") else {
-        return Ok(1_000);
+        return Ok(default);
     };
     let text = text.to_string_lossy();
     let rate: u32 = text.trim().parse().map_err(|e| {
         format!("FIRMWARE_CONTROL_RATE_HZ={text:?} is not a whole number of hertz: {e}")
     })?;
-    if !CONTROL_RATE_RANGE_HZ.contains(&rate) {
+    if !range.contains(&rate) {
         return Err(format!(
             "FIRMWARE_CONTROL_RATE_HZ={rate} is outside {} to {} Hz",
-            CONTROL_RATE_RANGE_HZ.start(),
-            CONTROL_RATE_RANGE_HZ.end()
+            range.start(),
+            range.end()
         ));
     }
     Ok(rate)

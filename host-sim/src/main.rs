@@ -6,7 +6,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use host_sim::commands::{
-    accuracy, calibrate, calibration_demo, faults, link_check, montecarlo, record, run,
+    accuracy, calibrate, calibration_demo, faults, free_run, link_check, montecarlo, record, run,
 };
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
@@ -37,6 +37,9 @@ enum Command {
     Accuracy(accuracy::Args),
     /// Handshake with the controller, exchange frames and check every reply.
     LinkCheck(link_check::Args),
+    /// One pick with the plant running free on the host's clock against the
+    /// emulated board built with `free-run` (see scripts/qemu-free-run).
+    FreeRun(free_run::Args),
 }
 
 fn main() -> ExitCode {
@@ -51,6 +54,7 @@ fn main() -> ExitCode {
         Some(Command::Calibrate(args)) => calibrate::run(args),
         Some(Command::Accuracy(args)) => accuracy::run(args),
         Some(Command::LinkCheck(args)) => link_check::run(args),
+        Some(Command::FreeRun(args)) => free_run::run(args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

@@ -25,12 +25,29 @@ const AN386_CODE_END: u32 = 0x0040_0000;
 /// Why the emulator could not be started.
 #[derive(Debug)]
 pub enum QemuError {
-    ElfMissing { path: PathBuf },
-    WrongBoard { path: PathBuf, entry: u32 },
-    NotElf { path: PathBuf, detail: String },
+    ElfMissing {
+        path: PathBuf,
+    },
+    WrongBoard {
+        path: PathBuf,
+        entry: u32,
+    },
+    /// The image runs its control loop in the other mode (lock step or free
+    /// running) than the test asked for.
+    WrongMode {
+        path: PathBuf,
+        free_running: bool,
+    },
+    NotElf {
+        path: PathBuf,
+        detail: String,
+    },
     QemuMissing,
     Spawn(std::io::Error),
-    ExitedEarly { status: ExitStatus, stderr: String },
+    ExitedEarly {
+        status: ExitStatus,
+        stderr: String,
+    },
 }
 
 impl fmt::Display for QemuError {
@@ -47,6 +64,19 @@ impl fmt::Display for QemuError {
                  it was built for another board (the STM32F407 build overwrites the same path); {BUILD_HINT}",
                 path.display()
             ),
+            QemuError::WrongMode { path, free_running } => {
+                let (is, wanted) = if *free_running {
+                    ("the free-running board (`--features board-qemu,free-run`)", "lock step")
+                } else {
+                    ("the lock-step board", "running free (`--features board-qemu,free-run`)")
+                };
+                write!(
+                    f,
+                    "{} is {is}, but this test needs the board {wanted}: {BUILD_HINT} \
+                     (scripts/build-firmware builds both: target/firmware/qemu.elf, qemu-free-run.elf)",
+                    path.display()
+                )
+            }
             QemuError::NotElf { path, detail } => {
                 write!(f, "{} is not a usable ARM ELF ({detail}): {BUILD_HINT}", path.display())
             }
@@ -71,6 +101,20 @@ pub fn firmware_elf_path() -> PathBuf {
         return PathBuf::from(path);
     }
     target_dir().join("thumbv7em-none-eabihf/firmware/firmware")
+}
+
+/// Env var naming the free-running firmware ELF (the emulated board built
+/// with `--features board-qemu,free-run`).
+pub const FREE_RUN_ELF_ENV: &str = "FIRMWARE_QEMU_FREE_RUN_ELF";
+
+/// The free-running firmware ELF: `$FIRMWARE_QEMU_FREE_RUN_ELF`, else
+/// `firmware/qemu-free-run.elf` under the target directory, where
+/// `scripts/build-firmware` (or `scripts/qemu-free-run`) leaves it.
+pub fn free_run_elf_path() -> PathBuf {
+    if let Some(path) = std::env::var_os(FREE_RUN_ELF_ENV) {
+        return PathBuf::from(path);
+    }
+    target_dir().join("firmware/qemu-free-run.elf")
 }
 
 /// The workspace's cargo target directory: `$CARGO_TARGET_DIR` (relative to
@@ -124,6 +168,33 @@ pub fn check_elf(path: &Path) -> Result<(), QemuError> {
     Ok(())
 }
 
+/// The name the free-running image reports in `HelloAck` (its
+/// `BOARD_NAME`): in the image's read-only data, and nowhere in a lock-step
+/// image.
+const FREE_RUN_BOARD_NAME: &[u8] = b"mps2-an386-free-run";
+
+/// Whether the image at `path` is the free-running board.
+fn is_free_running(path: &Path) -> Result<bool, QemuError> {
+    let bytes = std::fs::read(path).map_err(|_| QemuError::ElfMissing {
+        path: path.to_path_buf(),
+    })?;
+    Ok(bytes
+        .windows(FREE_RUN_BOARD_NAME.len())
+        .any(|window| window == FREE_RUN_BOARD_NAME))
+}
+
+/// Checks that the image at `path` runs in the mode the test wants.
+fn check_mode(path: &Path, free_running: bool) -> Result<(), QemuError> {
+    let is = is_free_running(path)?;
+    if is != free_running {
+        return Err(QemuError::WrongMode {
+            path: path.to_path_buf(),
+            free_running: is,
+        });
+    }
+    Ok(())
+}
+
 /// A running emulator; dropping it kills it and waits for it (bounded).
 pub struct QemuBoard {
     child: Option<Child>,
@@ -137,6 +208,17 @@ impl QemuBoard {
     /// CPU until a client connects (`wait=on`), so nothing the firmware sends
     /// is lost.
     pub fn start(elf: &Path) -> Result<Self, QemuError> {
+        check_elf(elf)?;
+        check_mode(elf, false)?;
+        Self::start_with(elf, &[])
+    }
+
+    /// [`QemuBoard::start`] for the free-running board: no `-icount`, so
+    /// QEMU's virtual clock, the firmware's time and its ticker, follows the
+    /// host's clock, as the free-running plant on the host does.
+    pub fn start_free_running(elf: &Path) -> Result<Self, QemuError> {
+        check_elf(elf)?;
+        check_mode(elf, true)?;
         Self::start_with(elf, &[])
     }
 
@@ -144,6 +226,8 @@ impl QemuBoard {
     /// (`-icount shift=0`), so the firmware's TIMER0 counts instructions
     /// (one count per 40) and its `RuntimeReport` gives instruction counts.
     pub fn start_counting_instructions(elf: &Path) -> Result<Self, QemuError> {
+        check_elf(elf)?;
+        check_mode(elf, false)?;
         Self::start_with(elf, &["-icount", "shift=0"])
     }
 
@@ -306,6 +390,27 @@ mod tests {
         let result = check_elf(&path);
         let _ = std::fs::remove_file(&path);
         result
+    }
+
+    #[test]
+    fn a_free_running_image_is_told_from_a_lock_step_one() {
+        let path = std::env::temp_dir().join(format!("mode-{}.elf", std::process::id()));
+        let mut bytes = elf_header(0x401);
+        std::fs::write(&path, &bytes).expect("write temp ELF");
+        assert!(check_mode(&path, false).is_ok());
+        let err = check_mode(&path, true).expect_err("lock step is not free running");
+        assert!(err.to_string().contains("free-run"), "{err}");
+        bytes.extend_from_slice(b"..mps2-an386-free-run..");
+        std::fs::write(&path, &bytes).expect("write temp ELF");
+        assert!(check_mode(&path, true).is_ok());
+        assert!(matches!(
+            check_mode(&path, false),
+            Err(QemuError::WrongMode {
+                free_running: true,
+                ..
+            })
+        ));
+        let _ = std::fs::remove_file(&path);
     }
 
     #[test]

@@ -14,7 +14,9 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
 use shared::app::pick::handoff::{TriggerRecord, VisionNews, WorkItem};
-use shared::protocol::{ActuatorCommand, CalibrationReport, CellConfig, Message, SensorSample};
+use shared::protocol::{
+    ActuatorCommand, CalibrationReport, CellConfig, Message, SensorSample, TriggerEvent,
+};
 
 type Raw = CriticalSectionRawMutex;
 
@@ -59,6 +61,10 @@ pub static OUTGOING: Channel<Raw, Message, 4> = Channel::new();
 /// link sends before anything in `OUTGOING` (a 40-byte hand-over: queueing it
 /// as a 320-byte `Message` cost the control period about 500 instructions).
 pub static COMMANDS: Channel<Raw, ActuatorCommand, 2> = Channel::new();
+/// Control loop -> link (ticker): each camera trigger's id and instant, for
+/// the vision side, sent before anything in `OUTGOING` (a 16-byte hand-over;
+/// at most one a camera period, 5 a second in the pick).
+pub static TRIGGER_EVENTS: Channel<Raw, TriggerEvent, 4> = Channel::new();
 /// Control loop -> link: the latest calibration report, which the link
 /// sends as a message (composing and queueing the 320-byte `Message` in the
 /// control period cost 1,200 instructions; this is a 72-byte hand-over). A

@@ -1,8 +1,10 @@
 //! The control loop, at the highest priority: once per period it takes a
-//! sensor sample (the board's encoders on a ticker, or the simulator's frame in
-//! lock step), runs the pick's control part (fusion Eq 1, the state machine,
-//! Eq 23), and drives the outputs (the board's servos, gripper and camera
-//! trigger, or an actuator-command frame in lock step). It hands triggers to
+//! sensor sample (on a ticker the board's encoders, latched with the camera
+//! trigger's edge when the period fires the camera; in lock step the
+//! simulator's frame), runs the pick's control part (fusion Eq 1, the state
+//! machine, Eq 23), and drives the outputs (the board's servos and gripper,
+//! or an actuator-command frame in lock step); on a ticker it tells the
+//! vision side each trigger's id (`TriggerEvent`). It hands triggers to
 //! the link's frame pairer and jobs to the worker without ever waiting for
 //! them, and measures its own cost.
 //!
@@ -29,7 +31,9 @@ use shared::app::new_report;
 use shared::app::pick::handoff::{ControlEvent, WorkItem};
 use shared::app::pick::settings::PickSettings;
 use shared::app::pick::{PickController, MAX_TICK_MESSAGES};
-use shared::protocol::{FaultCause, GripperCommand, Message, PickPhase, SensorSample};
+use shared::protocol::{
+    FaultCause, GripperCommand, Message, PickPhase, SensorSample, TriggerEvent,
+};
 use shared::safety::{
     check_reconfigure, BoardFault, CellState, DeadlineMonitor, DriveInterlock, EncoderMotion,
     InterlockFault, InterlockOutput, Parking, ParkingInput, ParkingOutput, PeriodInput,
@@ -38,11 +42,11 @@ use shared::safety::{
 
 use super::channels::{
     Configured, COMMANDS, CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, REPORTS, SAMPLES, TRIGGERS,
-    WORK,
+    TRIGGER_EVENTS, WORK,
 };
 use super::phase_log;
 use super::stats;
-use crate::board::{active, fail_safe, ControlSource, CycleCounter, PlantIo, Watchdog};
+use crate::board::{active, fail_safe, BoardError, ControlSource, CycleCounter, PlantIo, Watchdog};
 
 // `CONTROL_RATE_HZ`: the ticker's rate on a real board, the period a
 // deadline is counted against, and the rate `HelloAck` reports. Set at build
@@ -105,6 +109,29 @@ fn hand_on_events(pick: &mut PickController, session: u32) {
     }
 }
 
+/// The pick's settings on this build: the defaults, except that the
+/// emulated board running free allows a longer gap between two periods
+/// ([`FREE_RUN_STALL_LIMIT_S`]).
+fn pick_settings() -> PickSettings {
+    let settings = PickSettings::default();
+    if cfg!(feature = "free-run") {
+        PickSettings {
+            stall_limit_s: FREE_RUN_STALL_LIMIT_S,
+            ..settings
+        }
+    } else {
+        settings
+    }
+}
+
+/// The emulated board running free: the longest gap between two control
+/// periods before the pick stops (`ControlStall`). The host's scheduler can
+/// hold QEMU off for tens of milliseconds on a loaded machine, a gap the
+/// real board's 20 ms limit would stop the pick for; the host's plant holds
+/// the last torque for 200 ms (its drives' watchdog in this mode) before it
+/// brakes, so a gap up to that is one the arm rides out on its last torque.
+pub const FREE_RUN_STALL_LIMIT_S: f32 = 0.2;
+
 /// Replaces the pick for a new configuration. Out of line: the controller
 /// (4.5 KB) is built in this function's frame, not in the task poll's, which
 /// is on the stack in every period. A new configuration keeps the current
@@ -119,7 +146,7 @@ fn configure(
     reported_estimate: &mut u32,
     configured: &Configured,
 ) -> bool {
-    let settings = PickSettings::default();
+    let settings = pick_settings();
     let current = pick.as_ref().map(|(_, controller)| controller);
     match PickController::replacing(current, &configured.config, settings, configured.session) {
         Ok(controller) => {
@@ -174,7 +201,7 @@ fn interlock_period(
 fn parking_period(
     parking: &mut Parking,
     source: ControlSource,
-    sample: &SensorSample,
+    now_us: u64,
     phase: PickPhase,
     speeds: Option<[f32; 6]>,
 ) -> ParkingOutput {
@@ -187,10 +214,10 @@ fn parking_period(
     let at_rest = speeds.is_some_and(|qd| qd.iter().all(|v| v.abs() <= REST_SPEED_RAD_S));
     let before = parking.state();
     let output = parking.period(&ParkingInput {
-        time_us: sample.time_us,
+        time_us: now_us,
         pick_ended: matches!(phase, PickPhase::Done | PickPhase::Faulted),
         at_rest,
-        since_host_frame_us: (sample.time_us as u32)
+        since_host_frame_us: (now_us as u32)
             .wrapping_sub(LAST_HOST_FRAME_US.load(Ordering::Relaxed)),
     });
     if parking.state() != before {
@@ -220,19 +247,99 @@ fn publish_reconfigure(
     );
 }
 
+/// The ticker of the control periods, and when its last tick was due.
+struct PeriodClock {
+    ticker: Ticker,
+    period: Duration,
+    due: Instant,
+}
+
+impl PeriodClock {
+    fn new() -> Self {
+        let period = Duration::from_hz(u64::from(CONTROL_RATE_HZ));
+        PeriodClock {
+            ticker: Ticker::every(period),
+            period,
+            due: Instant::now(),
+        }
+    }
+
+    /// Waits for the next period; returns when it started. A tick later than
+    /// one period past its due time (the core was held off: a long
+    /// interrupt, or the host's scheduler holding QEMU off) starts the ticker
+    /// again from now, rather than running the missed periods back to back
+    /// on one reading of the plant.
+    async fn next(&mut self) -> Instant {
+        self.ticker.next().await;
+        self.due += self.period;
+        let now = Instant::now();
+        if now > self.due + self.period {
+            self.ticker.reset();
+            self.due = now;
+        }
+        now
+    }
+}
+
+/// What a period starts with.
+enum Reading {
+    /// A new sample, and the period's start on the controller's clock (in
+    /// lock step the sample's own time).
+    Sample { sample: SensorSample, now_us: u64 },
+    /// The plant could not be read (logged once): the drives go off.
+    Failed,
+    /// The plant has nothing newer than the last sample (the emulated board
+    /// running free, before the host's next state): no period runs, the
+    /// last command stands.
+    Unchanged,
+}
+
+/// What the ticker's reads remember between periods.
+struct TickerReads {
+    /// The last read's error, logged once until a read succeeds.
+    error: Option<BoardError>,
+    /// The last sample's time: a reading not newer is no new sample.
+    last_time_us: Option<u64>,
+}
+
 /// The next sample: from the link in lock step, from the board's encoders on
-/// the ticker.
+/// the ticker. On the ticker the instant of the counts comes first
+/// (`PlantIo::reading_time_us`: the period's start on the STM32F407, the
+/// plant state's own stamp on the emulated board running free) and `pick`
+/// says whether that instant fires the camera, so the board raises the
+/// trigger line as it latches the counts (`PlantIo::read_sample`): the sample
+/// the pick pairs with the trigger is the latched one, stamped with its
+/// instant.
 async fn next_sample(
     source: ControlSource,
-    ticker: &mut Ticker,
+    clock: &mut PeriodClock,
     plant: &mut active::Plant,
-) -> Option<SensorSample> {
+    pick: Option<&PickController>,
+    reads: &mut TickerReads,
+) -> Reading {
     match source {
-        ControlSource::LockStep => Some(SAMPLES.receive().await),
+        ControlSource::LockStep => {
+            let sample = SAMPLES.receive().await;
+            Reading::Sample {
+                now_us: sample.time_us,
+                sample,
+            }
+        }
         ControlSource::Ticker => {
-            ticker.next().await;
-            match plant.read_sample() {
-                Ok(reading) => {
+            let now_us = clock.next().await.as_micros();
+            let reading = plant.reading_time_us(now_us).and_then(|time_us| {
+                if reads.last_time_us.is_some_and(|last| time_us <= last) {
+                    return Ok(None);
+                }
+                let camera_trigger = pick.is_some_and(|pick| pick.camera_trigger_due(time_us));
+                plant
+                    .read_sample(camera_trigger)
+                    .map(|reading| Some((time_us, reading)))
+            });
+            match reading {
+                Ok(Some((time_us, reading))) => {
+                    reads.error = None;
+                    reads.last_time_us = Some(time_us);
                     // Latched: the interlock turns the drives off this
                     // period and keeps them off until the host acknowledges,
                     // even if the input returns.
@@ -242,17 +349,23 @@ async fn next_sample(
                     if reading.drive_fault {
                         fail_safe::latch(BoardFault::DriveFault);
                     }
-                    Some(SensorSample {
+                    let sample = SensorSample {
                         seq: TICKER_SEQ.fetch_add(1, Ordering::Relaxed),
-                        time_us: Instant::now().as_micros(),
+                        time_us,
                         joint_counts: reading.joint_counts,
                         conveyor_counts: reading.conveyor_counts,
                         part_in_gripper: reading.part_in_gripper,
-                    })
+                    };
+                    Reading::Sample { sample, now_us }
                 }
+                Ok(None) => Reading::Unchanged,
                 Err(e) => {
-                    defmt::warn!("control loop: {}", e);
-                    None
+                    // Once per kind of error, not every period.
+                    if reads.error != Some(e) {
+                        defmt::warn!("control loop: {}", e);
+                    }
+                    reads.error = Some(e);
+                    Reading::Failed
                 }
             }
         }
@@ -277,13 +390,29 @@ pub async fn control_loop(
     let mut pick: Option<(u32, PickController)> = None;
     let mut reported_estimate = 0u32;
     let mut last_phase = PickPhase::Idle;
-    let mut ticker = Ticker::every(Duration::from_hz(u64::from(CONTROL_RATE_HZ)));
+    let mut clock = PeriodClock::new();
+    let mut reads = TickerReads {
+        error: None,
+        last_time_us: None,
+    };
     // The period's budget in the counter's units at the board's nominal clock.
     let budget = active::CPU_HZ / CONTROL_RATE_HZ;
     loop {
-        let sample = next_sample(source, &mut ticker, &mut plant).await;
+        let reading = next_sample(
+            source,
+            &mut clock,
+            &mut plant,
+            pick.as_ref().map(|(_, controller)| controller),
+            &mut reads,
+        )
+        .await;
         // Every period, configured or not; the first one arms it.
         watchdog.feed();
+        let sample = match reading {
+            Reading::Sample { sample, now_us } => Some((sample, now_us)),
+            Reading::Failed => None,
+            Reading::Unchanged => continue,
+        };
         if let Some(configured) = CONTROL_CONFIG.try_take() {
             // Measured on its own: it runs with the arm at rest (the link
             // accepted it through the reconfiguration gate), so it is not
@@ -313,9 +442,16 @@ pub async fn control_loop(
                 speeds = None;
                 parking.restart();
                 deadline = DeadlineMonitor::new();
+                if source == ControlSource::Ticker {
+                    // This period's counts were read for the old pick (its
+                    // trigger decision): the new one starts next period,
+                    // with the drives off (the gate required them off).
+                    plant.disable();
+                    continue;
+                }
             }
         }
-        let (Some(sample), Some((session, controller))) = (sample, pick.as_mut()) else {
+        let (Some((sample, now_us)), Some((session, controller))) = (sample, pick.as_mut()) else {
             plant.disable();
             if pick.is_none() {
                 // No pick (none yet, or the last configuration failed to
@@ -336,7 +472,7 @@ pub async fn control_loop(
         }
         let started = cycles.now();
         if source == ControlSource::Ticker
-            && (sample.time_us as u32).wrapping_sub(LAST_HOST_FRAME_US.load(Ordering::Relaxed))
+            && (now_us as u32).wrapping_sub(LAST_HOST_FRAME_US.load(Ordering::Relaxed))
                 > LINK_TIMEOUT_US
         {
             controller.stop(FaultCause::LinkLost);
@@ -348,6 +484,17 @@ pub async fn control_loop(
         let repeated = controller.repeats(&sample);
         let mut command = controller.on_sensor_sample(&sample, &mut extra);
         hand_on_events(controller, *session);
+        if let (ControlSource::Ticker, Some(trigger_id)) = (source, command.camera_trigger) {
+            // The vision side learns the id of the exposure the trigger line
+            // started (in lock step it is in the actuator command).
+            let event = TriggerEvent {
+                trigger_id,
+                time_us: sample.time_us,
+            };
+            if TRIGGER_EVENTS.try_send(event).is_err() {
+                stats::count_dropped_message();
+            }
+        }
         let drives = interlock_period(
             &mut interlock,
             &mut motion,
@@ -368,7 +515,7 @@ pub async fn control_loop(
             }
         }
         command.joint_torque_nm = drives.torque_nm;
-        let park = parking_period(&mut parking, source, &sample, controller.phase(), speeds);
+        let park = parking_period(&mut parking, source, now_us, controller.phase(), speeds);
         let drives_on = drives.enable && park.drives_allowed;
         publish_reconfigure(controller, speeds, drives_on, source);
         match source {
@@ -380,9 +527,7 @@ pub async fn control_loop(
             ControlSource::Ticker if !drives_on => plant.disable(),
             ControlSource::Ticker => {
                 let closed = command.gripper == GripperCommand::Close;
-                if let Err(e) =
-                    plant.apply(&command.joint_torque_nm, closed, command.camera_trigger)
-                {
+                if let Err(e) = plant.apply(&command.joint_torque_nm, closed) {
                     defmt::error!("control loop: {}; drives off", e);
                     controller.stop(FaultCause::ControlFailure);
                 }

@@ -24,8 +24,8 @@ use shared::protocol::{
 };
 
 use super::channels::{
-    Configured, COMMANDS, CONTROL_CONFIG, NEWS, OUTGOING, REPORTS, SAMPLES, TRIGGERS, WORK,
-    WORKER_CONFIG,
+    Configured, COMMANDS, CONTROL_CONFIG, NEWS, OUTGOING, REPORTS, SAMPLES, TRIGGERS,
+    TRIGGER_EVENTS, WORK, WORKER_CONFIG,
 };
 use super::control_loop::{CONTROL_RATE_HZ, LAST_HOST_FRAME_US, RECONFIGURE_REFUSAL};
 use super::stats;
@@ -72,6 +72,18 @@ impl Session {
                     }
                     self.last_sample = Some((sample.seq, sample.time_us));
                 }
+                None
+            }
+            // Running free, once configured: the newest state of the host's
+            // plant, for the board's plant to read (`board::qemu::free_run`).
+            // Before that a sample is a data frame like any other
+            // (acknowledged, so `host-sim link-check` works on this board).
+            #[cfg(feature = "free-run")]
+            Message::SensorSample(sample)
+                if open && self.pairer.is_some() && self.source == ControlSource::Ticker =>
+            {
+                self.responder.count_received();
+                crate::board::active::free_run::deliver_state(sample);
                 None
             }
             Message::CameraFeatures(frame) if open => {
@@ -205,13 +217,23 @@ fn encode(message: &Message, frame: &mut [u8; MAX_FRAME_LEN]) -> usize {
 }
 
 /// The next message to send, framed into `frame` (its length): the period's
-/// command first, then its other messages, then the latest calibration
-/// report. Polled before the UART's read, so reads wait until all three are
+/// command first, then the camera triggers' events, then the period's other
+/// messages, then the latest calibration report. Polled before the UART's read, so reads wait until all three are
 /// empty; the message taken is encoded here and never crosses an await.
 #[inline(never)]
 fn poll_outgoing(cx: &mut Context<'_>, frame: &mut [u8; MAX_FRAME_LEN]) -> Poll<usize> {
+    // Running free: the newest command for the host's plant goes first.
+    #[cfg(feature = "free-run")]
+    if let Poll::Ready(command) =
+        Pin::new(&mut crate::board::active::free_run::PLANT_COMMANDS.wait()).poll(cx)
+    {
+        return Poll::Ready(encode(&Message::ActuatorCommand(command), frame));
+    }
     if let Poll::Ready(command) = COMMANDS.poll_receive(cx) {
         return Poll::Ready(encode(&Message::ActuatorCommand(command), frame));
+    }
+    if let Poll::Ready(event) = TRIGGER_EVENTS.poll_receive(cx) {
+        return Poll::Ready(encode(&Message::TriggerEvent(event), frame));
     }
     if let Poll::Ready(message) = OUTGOING.poll_receive(cx) {
         return Poll::Ready(encode(&message, frame));

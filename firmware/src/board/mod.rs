@@ -62,10 +62,23 @@ pub enum BoardError {
     /// The board has no such device: the emulated board's encoders and
     /// servos are the simulator's, reached through the link in lock step.
     #[cfg_attr(
-        not(feature = "board-qemu"),
-        allow(dead_code, reason = "only the emulated board lacks its own devices")
+        any(not(feature = "board-qemu"), feature = "free-run"),
+        allow(
+            dead_code,
+            reason = "only the lock-step emulated board lacks its own devices"
+        )
     )]
     NotOnThisBoard { device: &'static str },
+    /// The emulated board running free has had no plant state from the host
+    /// yet (its encoders are the simulated plant's, sent over the link).
+    #[cfg_attr(
+        not(feature = "free-run"),
+        allow(
+            dead_code,
+            reason = "only the free-running emulated board reads a remote plant"
+        )
+    )]
+    NoPlantState,
 }
 
 impl fmt::Display for BoardError {
@@ -83,6 +96,9 @@ impl fmt::Display for BoardError {
                 f,
                 "{device}: not on this board (the simulator's, through the link in lock step)"
             ),
+            BoardError::NoPlantState => {
+                write!(f, "encoders: no plant state from the host's simulator yet")
+            }
         }
     }
 }
@@ -105,6 +121,9 @@ impl defmt::Format for BoardError {
                 "{=str}: not on this board (the simulator's, through the link in lock step)",
                 device
             ),
+            BoardError::NoPlantState => {
+                defmt::write!(f, "encoders: no plant state from the host's simulator yet")
+            }
         }
     }
 }
@@ -117,8 +136,11 @@ impl<T: embedded_io_async::Read + embedded_io_async::Write> SerialLink for T {}
 /// Where the control loop's sensor samples come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum ControlSource {
-    /// A fixed-rate ticker; the loop reads the board's own encoders
-    /// ([`PlantIo::read_sample`]) and drives its own outputs (real hardware).
+    /// A fixed-rate ticker; the loop reads its plant's encoders
+    /// ([`PlantIo::read_sample`]) and drives its outputs whenever its own
+    /// clock says, whatever the plant does (the STM32F407's own devices; the
+    /// emulated board built with `free-run`, whose plant is a simulator on
+    /// the host running free on the host's clock).
     Ticker,
     /// Lock step with a simulated plant: every `SensorSample` frame from the
     /// link is one control period, answered with an `ActuatorCommand` frame
@@ -141,20 +163,33 @@ pub struct PlantReading {
 /// The plant side of the control loop: encoders in, servo amplifiers, gripper
 /// and camera trigger out. Called only from the control loop, once per period.
 pub trait PlantIo {
+    /// When the counts the next [`read_sample`](PlantIo::read_sample)
+    /// returns were true, microseconds, on the clock the period's sample is
+    /// stamped with: `now_us`, the period's start on the controller's clock,
+    /// for a board that reads its own encoders now (the STM32F407); the
+    /// plant's own stamp of its newest state for a plant that sends its state
+    /// over the link (the emulated board running free), which `read_sample`
+    /// then returns. The control loop decides the camera trigger on this
+    /// instant, so the sample paired with a trigger carries the instant of
+    /// its counts.
+    fn reading_time_us(&mut self, now_us: u64) -> Result<u64, BoardError>;
+
     /// Joint encoder counts (unwrapped, joint 1 first), the conveyor
     /// encoder's raw hardware counter (it wraps; the controller unwraps it)
     /// and the gripper's part-present switch.
-    fn read_sample(&mut self) -> Result<PlantReading, BoardError>;
+    ///
+    /// With `camera_trigger` the camera trigger line rises here, at the
+    /// instant the counts are latched (the STM32F407: one critical section
+    /// that raises the line and reads every counter back to back), so the
+    /// counts the controller pairs with the trigger are those of the
+    /// exposure. Without it the line goes (or stays) low: a pulse is one
+    /// control period wide.
+    fn read_sample(&mut self, camera_trigger: bool) -> Result<PlantReading, BoardError>;
 
-    /// Drives the servo amplifiers with the joint torques (N m), the gripper,
-    /// and pulses the camera trigger when `camera_trigger` is set. Rejects a
-    /// non-finite torque before any output changes (then the drives are off).
-    fn apply(
-        &mut self,
-        torque_nm: &[f32; JOINTS],
-        gripper_closed: bool,
-        camera_trigger: Option<u32>,
-    ) -> Result<(), BoardError>;
+    /// Drives the servo amplifiers with the joint torques (N m) and the
+    /// gripper. Rejects a non-finite torque before any output changes (then
+    /// the drives are off).
+    fn apply(&mut self, torque_nm: &[f32; JOINTS], gripper_closed: bool) -> Result<(), BoardError>;
 
     /// Stops driving all joints (zero torque, amplifiers disabled) and
     /// engages the holding brakes: an arm without its drives is held only by
@@ -185,6 +220,7 @@ pub trait CycleCounter: Copy {
             shared::protocol::CostUnit::Cycles => "cycles",
             shared::protocol::CostUnit::Instructions => "instructions",
             shared::protocol::CostUnit::NotMeasured => "(not measured)",
+            shared::protocol::CostUnit::Nanoseconds => "ns",
         }
     }
 }

@@ -11,11 +11,13 @@
 //! - [`calibrate`]: `host-sim calibrate`: calibration of a log.
 //! - [`accuracy`]: `host-sim accuracy`: Monte-Carlo accuracy of the self-calibration.
 //! - [`link_check`]: `host-sim link-check`: handshake and checked exchange with the controller.
+//! - [`free_run`]: `host-sim free-run`: one pick with the plant running free against the emulated board.
 
 pub mod accuracy;
 pub mod calibrate;
 pub mod calibration_demo;
 pub mod faults;
+pub mod free_run;
 pub mod link_check;
 pub mod montecarlo;
 pub mod record;

@@ -1,7 +1,9 @@
 //! The full pick in the simulated workcell: the world ([`crate::world`])
 //! against the controller application over the serial protocol.
 //!
-//! - [`runner`]: one pick in lock step over any link.
+//! - [`runner`]: one pick in lock step over any link; [`free_run`]: one pick
+//!   with the plant running free on the host's clock (the emulated board
+//!   built with `free-run`).
 //! - [`record`]: what a pick leaves behind.
 //! - [`report`]: the results table and the terminal's lines; [`csv`]: the CSV
 //!   files; [`plots`]: the PNG figures; [`outputs`]: all of a run's files in
@@ -11,6 +13,7 @@
 
 pub mod csv;
 pub mod faults;
+pub mod free_run;
 pub mod montecarlo;
 pub mod outputs;
 pub mod plots;

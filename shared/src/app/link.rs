@@ -94,7 +94,8 @@ impl LinkResponder {
             | Message::ErrorReport { .. }
             | Message::Telemetry(_)
             | Message::CalibrationReport(_)
-            | Message::RuntimeReport(_) => {
+            | Message::RuntimeReport(_)
+            | Message::TriggerEvent(_) => {
                 self.status.frames_unexpected = self.status.frames_unexpected.wrapping_add(1);
                 Some(Message::ErrorReport {
                     code: ErrorCode::UnexpectedMessage,

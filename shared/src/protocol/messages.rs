@@ -1,4 +1,5 @@
-//! The messages of protocol v1. They are postcard-encoded, so the order of
+//! The messages of protocol v2 (v1's, with `TriggerEvent` and
+//! `CostUnit::Nanoseconds` appended). They are postcard-encoded, so the order of
 //! fields and of enum variants is part of the wire format: append, never reorder.
 
 use heapless::{String, Vec};
@@ -182,7 +183,7 @@ impl ErrorCode {
     }
 }
 
-/// Every message of protocol v1.
+/// Every message of protocol v2.
 ///
 /// Camera frames make this enum large (~330 bytes); there is no heap to box them
 /// and messages live on the stack only while being handled.
@@ -248,6 +249,26 @@ pub enum Message {
     /// Controller -> host: what the control loop and the worker cost, and the
     /// stack used (the firmware measures it; the in-process controller cannot).
     RuntimeReport(RuntimeReport),
+    /// Controller -> vision side: the camera was triggered, on a controller
+    /// that runs on its own ticker (in lock step the trigger id travels in
+    /// the `ActuatorCommand`). The frame exposed at this edge comes back as
+    /// `CameraFeatures` with this `trigger_id`. Added in protocol v2.
+    TriggerEvent(TriggerEvent),
+}
+
+/// The camera trigger's edge, as the controller latched the encoders at it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TriggerEvent {
+    /// The id the frame of this exposure must carry.
+    pub trigger_id: u32,
+    /// The edge's instant, microseconds, on the clock that stamped the
+    /// encoder reading latched with it: the controller's own where the
+    /// encoders are the board's (the STM32F407: the sensor sample's time);
+    /// the plant's where the plant keeps its own clock (the emulated board
+    /// running free against a simulated plant: the time stamp of the plant
+    /// state it latched), so a simulated camera exposes the very state whose
+    /// counts the controller pairs with the frame.
+    pub time_us: u64,
 }
 
 /// What a [`RuntimeReport`]'s costs are counted in.
@@ -259,6 +280,10 @@ pub enum CostUnit {
     Instructions,
     /// CPU cycles (the DWT cycle counter of a real Cortex-M4).
     Cycles,
+    /// Nanoseconds of wall-clock time (the emulated board running free,
+    /// without `-icount`: QEMU's clock follows the host's, so a cost is how
+    /// long the period took, preemptions by the host included). Added in v2.
+    Nanoseconds,
 }
 
 /// Costs and margins measured by the firmware since the cell was configured.

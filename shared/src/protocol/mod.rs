@@ -1,4 +1,4 @@
-//! Serial protocol v1 between the vision computer / simulator and the controller.
+//! Serial protocol v2 between the vision computer / simulator and the controller.
 //!
 //! - Messages ([`Message`]) are postcard-encoded (varints, compact enums).
 //! - Each is followed by a CRC-32 (ISO-HDLC, little-endian) of its payload.
@@ -24,8 +24,14 @@ pub use frame::{
 };
 pub use messages::*;
 
-/// The protocol version this code speaks.
-pub const PROTOCOL_VERSION: u16 = 1;
+/// The protocol version this code speaks. Messages and fields are only ever
+/// appended, so an older peer's messages keep their encoding; the version
+/// goes up when a peer of the previous version could not decode what this
+/// one sends unasked. v2: `Message::TriggerEvent` (the controller sends it
+/// on every camera trigger of its ticker, which a v1 host would refuse as a
+/// bad frame five times a second) and `CostUnit::Nanoseconds`. The handshake
+/// refuses any other version with `UnsupportedVersion` (detail: this one).
+pub const PROTOCOL_VERSION: u16 = 2;
 
 #[cfg(test)]
 mod tests;

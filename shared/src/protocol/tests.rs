@@ -1,4 +1,4 @@
-//! Property tests of protocol v1: round trips, garbage, corruption.
+//! Property tests of protocol v2: round trips, garbage, corruption.
 use super::*;
 use heapless::{String, Vec};
 use proptest::collection::vec as pvec;
@@ -156,12 +156,19 @@ fn arb_message() -> impl Strategy<Value = Message> {
         }),
         (arb_code(), any::<u32>()).prop_map(|(code, detail)| Message::ErrorReport { code, detail }),
         Just(Message::RuntimeReportRequest),
-        (any::<u64>(), any::<[u32; 10]>(), 0u8..3).prop_map(|(ticks, v, unit)| {
+        (any::<u32>(), any::<u64>()).prop_map(|(trigger_id, time_us)| {
+            Message::TriggerEvent(TriggerEvent {
+                trigger_id,
+                time_us,
+            })
+        }),
+        (any::<u64>(), any::<[u32; 10]>(), 0u8..4).prop_map(|(ticks, v, unit)| {
             Message::RuntimeReport(RuntimeReport {
                 unit: match unit {
                     0 => CostUnit::NotMeasured,
                     1 => CostUnit::Instructions,
-                    _ => CostUnit::Cycles,
+                    2 => CostUnit::Cycles,
+                    _ => CostUnit::Nanoseconds,
                 },
                 uptime_us: ticks / 3,
                 control_ticks: ticks,
@@ -306,6 +313,10 @@ fn the_largest_messages_fit_the_documented_frame() {
             gripper: GripperCommand::Close,
             camera_trigger: Some(u32::MAX),
         }),
+        Message::TriggerEvent(TriggerEvent {
+            trigger_id: u32::MAX,
+            time_us: u64::MAX,
+        }),
         Message::Status(ControllerStatus {
             mode: ControllerMode::Faulted,
             control_ticks: u64::MAX,
@@ -379,4 +390,25 @@ fn the_documented_frame_limits_hold() {
     // README and protocol docs state these numbers.
     assert_eq!(MAX_MESSAGE_LEN, 320);
     assert_eq!(MAX_FRAME_LEN, 328);
+}
+
+/// The v2 additions are appended: every v1 message keeps its encoding (the
+/// new variants' indices come after the old ones), and the version says so.
+#[test]
+fn v2_appends_the_trigger_event_and_keeps_v1_encodings() {
+    assert_eq!(PROTOCOL_VERSION, 2);
+    // postcard writes the variant index first: RuntimeReport was the last of
+    // v1 (index 13), TriggerEvent is 14.
+    let event = wire_bytes(&Message::TriggerEvent(TriggerEvent {
+        trigger_id: 5,
+        time_us: 300,
+    }));
+    assert_eq!(event, vec![14, 5, 0xAC, 0x02]);
+    assert_eq!(wire_bytes(&Message::RuntimeReportRequest), vec![12]);
+    assert_eq!(wire_bytes(&Message::StatusRequest), vec![5]);
+    let mut unit = [0u8; 4];
+    assert_eq!(
+        ::postcard::to_slice(&CostUnit::Nanoseconds, &mut unit).expect("fits"),
+        &[3]
+    );
 }

@@ -2,8 +2,10 @@
 //! -machine mps2-an386`. UART0 carries the host link (QEMU connects it to a TCP
 //! socket), the CMSDK dual timer drives embassy-time, defmt goes out over
 //! semihosting. There are no motors: the simulator is the plant, in lock step
-//! through the protocol (sensor samples in, actuator commands out). TIMER0
-//! counts instructions under `-icount`; NVIC lines 28 and 29 run the interrupt
+//! through the protocol (sensor samples in, actuator commands out), or, with
+//! the `free-run` feature, running free on the host's clock while the control
+//! loop runs on its own ticker ([`free_run`]). TIMER0 counts instructions
+//! under `-icount` (nanoseconds of the host's clock without it); NVIC lines 28 and 29 run the interrupt
 //! executors. The board's watchdog is a no-op ([`NoWatchdog`]).
 //!
 //! Drives that fail safe, here: there is no amplifier enable line, the
@@ -13,6 +15,8 @@
 //! the host acknowledges; a panic or a HardFault ends QEMU (the simulator
 //! then gets no command, and its drives' watchdog brakes the arm).
 
+#[cfg(feature = "free-run")]
+pub mod free_run;
 mod mmio;
 mod sim_io;
 pub mod time_driver;
@@ -20,24 +24,50 @@ mod uart;
 
 use defmt_semihosting as _;
 
-pub use sim_io::{InstructionCounter, LockStepPlant};
+#[cfg(feature = "free-run")]
+pub use free_run::FreeRunPlant;
+pub use sim_io::InstructionCounter;
+#[cfg(not(feature = "free-run"))]
+pub use sim_io::LockStepPlant;
 pub use uart::Uart0;
 
 use super::{fail_safe, Board, ControlSource, Watchdog as WatchdogFeed};
 use crate::executor::{on_interrupt, Level};
 
 pub type Serial = Uart0;
+#[cfg(not(feature = "free-run"))]
 pub type Plant = LockStepPlant;
+#[cfg(feature = "free-run")]
+pub type Plant = FreeRunPlant;
 pub type Cycles = InstructionCounter;
 pub type Watchdog = NoWatchdog;
 
 /// Name reported in `HelloAck`.
+#[cfg(not(feature = "free-run"))]
 pub const BOARD_NAME: &str = "mps2-an386";
+/// Name reported in `HelloAck`: the host's plant must run free for it.
+#[cfg(feature = "free-run")]
+pub const BOARD_NAME: &str = "mps2-an386-free-run";
 
 /// The clock a control period's budget is counted against: the emulator has
 /// none of its own, so the STM32F407's 168 MHz (with one instruction per cycle,
 /// the M4's best case; the report gives the instructions themselves).
+#[cfg(not(feature = "free-run"))]
 pub const CPU_HZ: u32 = 168_000_000;
+/// Running free (no `-icount`), TIMER0 counts QEMU's virtual clock, which
+/// follows the host's: its units (`InstructionCounter::scale` = 40 per count
+/// at 25 MHz) are nanoseconds, so the budget `CPU_HZ / rate` is the whole
+/// period in wall-clock time, what the host's free-running plant allows.
+#[cfg(feature = "free-run")]
+pub const CPU_HZ: u32 = 1_000_000_000;
+
+/// Where control periods come from: the simulator's samples in lock step, or
+/// the board's own ticker when running free.
+const CONTROL_SOURCE: ControlSource = if cfg!(feature = "free-run") {
+    ControlSource::Ticker
+} else {
+    ControlSource::LockStep
+};
 
 /// Spare NVIC lines (no device of the AN386 that QEMU models drives them)
 /// for the interrupt executors.
@@ -50,10 +80,10 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
     Ok(Board {
         name: BOARD_NAME,
         serial: Uart0::init(),
-        plant: LockStepPlant::take(),
+        plant: <Plant>::take(),
         cycles: InstructionCounter::start(),
         watchdog: NoWatchdog { _owned: () },
-        control_source: ControlSource::LockStep,
+        control_source: CONTROL_SOURCE,
     })
 }
 

@@ -13,7 +13,9 @@
 use shared::protocol::CostUnit;
 
 use super::mmio::Reg;
-use crate::board::{validate_torques, BoardError, CycleCounter, PlantIo, PlantReading, JOINTS};
+use crate::board::CycleCounter;
+#[cfg(not(feature = "free-run"))]
+use crate::board::{validate_torques, BoardError, PlantIo, PlantReading, JOINTS};
 
 const TIMER0: Reg = Reg(0x4000_0000);
 const CTRL: Reg = TIMER0.at(0x00);
@@ -24,19 +26,27 @@ const CTRL_ENABLE: u32 = 1 << 0;
 /// Instructions per TIMER0 count with `-icount shift=0` (1 ns each, 25 MHz).
 const INSTRUCTIONS_PER_COUNT: u32 = 40;
 
-/// The simulator's plant, reached through the link.
+/// The simulator's plant, reached through the link (in lock step; running
+/// free the plant is `free_run::FreeRunPlant`).
+#[cfg(not(feature = "free-run"))]
 pub struct LockStepPlant {
     _owned: (),
 }
 
+#[cfg(not(feature = "free-run"))]
 impl LockStepPlant {
     pub(super) fn take() -> Self {
         LockStepPlant { _owned: () }
     }
 }
 
+#[cfg(not(feature = "free-run"))]
 impl PlantIo for LockStepPlant {
-    fn read_sample(&mut self) -> Result<PlantReading, BoardError> {
+    fn reading_time_us(&mut self, _now_us: u64) -> Result<u64, BoardError> {
+        Err(BoardError::NotOnThisBoard { device: "encoders" })
+    }
+
+    fn read_sample(&mut self, _camera_trigger: bool) -> Result<PlantReading, BoardError> {
         Err(BoardError::NotOnThisBoard { device: "encoders" })
     }
 
@@ -44,7 +54,6 @@ impl PlantIo for LockStepPlant {
         &mut self,
         torque_nm: &[f32; JOINTS],
         _gripper_closed: bool,
-        _camera_trigger: Option<u32>,
     ) -> Result<(), BoardError> {
         validate_torques(torque_nm)?;
         Err(BoardError::NotOnThisBoard {
@@ -87,6 +96,12 @@ impl CycleCounter for InstructionCounter {
     }
 
     fn cost_unit(&self) -> CostUnit {
-        CostUnit::Instructions
+        // Running free there is no `-icount`: a count is 40 ns of the host's
+        // clock (see `board::qemu::CPU_HZ`).
+        if cfg!(feature = "free-run") {
+            CostUnit::Nanoseconds
+        } else {
+            CostUnit::Instructions
+        }
     }
 }

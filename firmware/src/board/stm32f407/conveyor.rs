@@ -147,6 +147,7 @@ impl ConveyorEncoder {
     }
 
     /// The wrapping x4 count.
+    #[inline(always)]
     pub fn count(&self) -> u32 {
         COUNT.load(Ordering::Relaxed)
     }

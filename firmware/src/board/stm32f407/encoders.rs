@@ -63,7 +63,10 @@ impl QuadratureEncoders {
         encoders
     }
 
-    fn raw(&self) -> [u16; 6] {
+    /// The six timers' 16-bit counters, joint 1 first, read back to back
+    /// (the latch reads them here, inside its critical section).
+    #[inline(always)]
+    pub(super) fn raw(&self) -> [u16; 6] {
         [
             self.joint1.count(),
             self.joint2.count(),
@@ -83,10 +86,10 @@ pub fn qei_config() -> QeiConfig {
 }
 
 impl QuadratureEncoders {
-    /// The joint counts since boot, unwrapped from the 16-bit timers, in each
-    /// joint's direction (its encoder sign, `super::JOINT_SIGNS`).
-    pub fn read_counts(&mut self) -> Result<JointCounts, BoardError> {
-        let raw = self.raw();
+    /// The joint counts since boot from the timers' counters `raw` (read by
+    /// [`Self::raw`] at the latch), unwrapped from 16 bits, in each joint's
+    /// direction (its encoder sign, `super::JOINT_SIGNS`).
+    pub fn unwrap_counts(&mut self, raw: [u16; 6]) -> Result<JointCounts, BoardError> {
         let mut out = [0i32; 6];
         for (joint, ((out, count), raw)) in out
             .iter_mut()

@@ -20,7 +20,9 @@
 //!   TIM11, TIM13, TIM14 CH1, direction lines PE7/8/10/12/13/14, enable PE15
 //!   ([`servo`], [`sign_magnitude`]);
 //! - gripper PD0, camera trigger PD1, part-present switch PD4, emergency
-//!   stop PD8, amplifier fault PD9, holding brakes PD10 ([`plant`]);
+//!   stop PD8, amplifier fault PD9, holding brakes PD10 ([`plant`]); the
+//!   trigger's edge and every encoder counter in one critical section
+//!   ([`latch`]);
 //! - cycle counter: the DWT's CYCCNT ([`cycles`]);
 //! - the independent watchdog (IWDG), armed by the control loop's first
 //!   period, 32 ms nominal ([`watchdog`]); `init` logs a reset it caused.
@@ -45,6 +47,7 @@ mod clock;
 mod conveyor;
 mod cycles;
 mod encoders;
+mod latch;
 mod plant;
 mod quadrature;
 mod registers;

@@ -22,20 +22,22 @@
 //! the arm (parking, `shared::safety::parking`); `disable` drops both.
 //!
 //! The camera trigger is a pulse one control period wide (1 ms at the 1 kHz
-//! control rate): `apply` raises it when the controller asks for a frame and
-//! the next `apply` lowers it. The trigger id travels over the link, not on
-//! the pin; the camera exposes on the rising edge, which is when the
-//! controller latched the encoders for that id. Triggers in consecutive
+//! control rate): `read_sample(true)` raises it and latches every counter in
+//! the same critical section ([`super::latch`]), the next `read_sample(false)`
+//! lowers it. The trigger id travels over the link (the control loop's
+//! `TriggerEvent`), not on the pin; the camera exposes on the rising edge,
+//! which is when the encoders for that id were latched. Triggers in consecutive
 //! periods merge into one longer pulse and one exposure: the later ids get no
 //! frame, which the host sees as a camera dropout. Delaying them instead
 //! would pair an image with encoder counts latched a period earlier, a silent
 //! error in the calibration data. (The pick fires the camera every few tens
 //! of periods, so this does not arise there.)
 
-use embassy_stm32::gpio::{Input, Output};
+use embassy_stm32::gpio::{Input, Level, Output};
 
 use super::conveyor::ConveyorEncoder;
 use super::encoders::QuadratureEncoders;
+use super::latch::{latch, LatchHardware};
 use super::servo::ServoAmplifiers;
 use crate::board::{validate_torques, BoardError, PlantIo, PlantReading, JOINTS};
 
@@ -136,26 +138,62 @@ impl Stm32Plant {
     }
 }
 
+/// The trigger line and the counters, as the latch sees them.
+struct TriggerAndCounters<'a> {
+    trigger: &'a mut Output<'static>,
+    joints: &'a QuadratureEncoders,
+    conveyor: &'a ConveyorEncoder,
+}
+
+impl LatchHardware for TriggerAndCounters<'_> {
+    #[inline(always)]
+    fn set_trigger(&mut self, high: bool) {
+        self.trigger
+            .set_level(if high { Level::High } else { Level::Low });
+    }
+
+    #[inline(always)]
+    fn joint_counters(&self) -> [u16; 6] {
+        self.joints.raw()
+    }
+
+    #[inline(always)]
+    fn conveyor_counter(&self) -> u32 {
+        self.conveyor.count()
+    }
+}
+
 impl PlantIo for Stm32Plant {
-    fn read_sample(&mut self) -> Result<PlantReading, BoardError> {
-        let joint_counts = self.joints.read_counts()?;
-        let conveyor_counts = self.conveyor.count();
+    /// The encoders are read now: the period's start.
+    fn reading_time_us(&mut self, now_us: u64) -> Result<u64, BoardError> {
+        Ok(now_us)
+    }
+
+    fn read_sample(&mut self, camera_trigger: bool) -> Result<PlantReading, BoardError> {
+        // One critical section: the trigger edge, then every counter, with
+        // no interrupt between them (the skew is in firmware/README.md).
+        let latched = critical_section::with(|_| {
+            latch(
+                &mut TriggerAndCounters {
+                    trigger: &mut self.camera_trigger,
+                    joints: &self.joints,
+                    conveyor: &self.conveyor,
+                },
+                camera_trigger,
+            )
+        });
+        let joint_counts = self.joints.unwrap_counts(latched.joints)?;
         self.report_conveyor_trouble();
         Ok(PlantReading {
             joint_counts,
-            conveyor_counts,
+            conveyor_counts: latched.conveyor,
             part_in_gripper: self.part_present.is_high(),
             emergency_stop: self.emergency_stop_ok.is_low(),
             drive_fault: self.drive_fault_n.is_low(),
         })
     }
 
-    fn apply(
-        &mut self,
-        torque_nm: &[f32; JOINTS],
-        gripper_closed: bool,
-        camera_trigger: Option<u32>,
-    ) -> Result<(), BoardError> {
+    fn apply(&mut self, torque_nm: &[f32; JOINTS], gripper_closed: bool) -> Result<(), BoardError> {
         if let Err(error) = validate_torques(torque_nm) {
             self.disable();
             return Err(error);
@@ -165,13 +203,6 @@ impl PlantIo for Stm32Plant {
             self.gripper.set_high();
         } else {
             self.gripper.set_low();
-        }
-        // High for this period when a frame is asked for, low otherwise: the
-        // pulse is one control period wide.
-        if camera_trigger.is_some() {
-            self.camera_trigger.set_high();
-        } else {
-            self.camera_trigger.set_low();
         }
         Ok(())
     }

@@ -59,6 +59,13 @@ impl World {
         self.camera.move_to(camera);
     }
 
+    /// Exposes frame `trigger_id` of `scene`, the marks at `time_s` (kept
+    /// from then: a free-running plant's camera, triggered at an instant the
+    /// trigger event names after the fact).
+    pub fn expose_camera(&mut self, trigger_id: u32, time_s: f64, scene: &SceneMarks) {
+        self.camera.expose(trigger_id, time_s, scene);
+    }
+
     /// One control period under `command`: the camera exposes now if triggered,
     /// the gripper acts now, then the plant integrates the delivered torque.
     pub fn apply(&mut self, command: &ActuatorCommand) -> Result<()> {
@@ -159,7 +166,9 @@ impl World {
         }
     }
 
-    fn scene_marks(&self) -> SceneMarks {
+    /// Where the camera's marks are now (a free-running plant keeps them for
+    /// a trigger that names this instant later).
+    pub fn scene_marks(&self) -> SceneMarks {
         let theta = self.conveyor.theta(self.time_s());
         let [first, second] = shared::app::tool::effector_marks_base(&self.flange_pose());
         SceneMarks {

@@ -18,10 +18,16 @@ impl CameraTrigger {
         }
     }
 
+    /// Whether a trigger is due at `now_s`: the one rule, for the period
+    /// and for a board that asks before it latches its encoders.
+    pub(super) fn due(&self, now_s: f32) -> bool {
+        now_s + 1e-6 >= self.next_trigger_s
+    }
+
     /// The trigger to fire at `now_s`, if one is due. A period missed
     /// altogether is not made up: the next trigger is a period from now.
     pub(super) fn fire(&mut self, now_s: f32, period_s: f32) -> Option<u32> {
-        if now_s + 1e-6 < self.next_trigger_s {
+        if !self.due(now_s) {
             return None;
         }
         self.next_trigger_s += period_s;

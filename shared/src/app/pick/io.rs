@@ -91,6 +91,15 @@ impl PickController {
         self.outbox.pop_front()
     }
 
+    /// Whether the period of a sample stamped `time_us` fires the camera: a
+    /// board that latches its encoders at the trigger edge asks before it
+    /// reads them, so the period's sample is the latched one.
+    pub fn camera_trigger_due(&self, time_us: u64) -> bool {
+        let start_us = self.start_time_us.unwrap_or(time_us);
+        let now_s = crate::kernels::micros_to_seconds(time_us.saturating_sub(start_us));
+        self.camera_trigger.due(now_s)
+    }
+
     /// True when the sample at `time_us` is due to apply a job's result that
     /// has not come yet. A lock-step caller (the emulated board) waits for the
     /// worker before such a sample, so the run is the same at any speed; a

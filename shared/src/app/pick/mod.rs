@@ -45,6 +45,8 @@ mod step;
 mod stop;
 mod supervisor;
 mod telemetry;
+#[cfg(test)]
+mod trigger_due_tests;
 pub mod view_monitor;
 pub mod worker;
 
