@@ -200,14 +200,16 @@ mod tests {
     #[test]
     fn wrong_version_is_refused_and_right_one_opens_a_session() {
         let mut r = LinkResponder::new("board", 1000);
-        assert!(matches!(
-            r.handle(&hello(2)),
-            Some(Message::ErrorReport {
-                code: ErrorCode::UnsupportedVersion,
-                ..
-            })
-        ));
-        assert!(!r.session_open());
+        for version in [PROTOCOL_VERSION - 1, PROTOCOL_VERSION + 1] {
+            assert!(matches!(
+                r.handle(&hello(version)),
+                Some(Message::ErrorReport {
+                    code: ErrorCode::UnsupportedVersion,
+                    ..
+                })
+            ));
+            assert!(!r.session_open());
+        }
         assert!(matches!(
             r.handle(&hello(PROTOCOL_VERSION)),
             Some(Message::HelloAck {
