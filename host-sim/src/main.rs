@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use host_sim::commands::{
     accuracy, calibrate, calibration_demo, faults, link_check, montecarlo, record, run,
+    vision_check,
 };
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
@@ -37,6 +38,9 @@ enum Command {
     Accuracy(accuracy::Args),
     /// Handshake with the controller, exchange frames and check every reply.
     LinkCheck(link_check::Args),
+    /// The mark detector on rendered camera frames of seeded picks, against the truth:
+    /// centroid errors, missed and spurious marks, perspective bias, pictures with --out.
+    VisionCheck(vision_check::Args),
 }
 
 fn main() -> ExitCode {
@@ -51,6 +55,7 @@ fn main() -> ExitCode {
         Some(Command::Calibrate(args)) => calibrate::run(args),
         Some(Command::Accuracy(args)) => accuracy::run(args),
         Some(Command::LinkCheck(args)) => link_check::run(args),
+        Some(Command::VisionCheck(args)) => vision_check::run(args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

@@ -11,6 +11,7 @@
 //! - [`calibrate`]: `host-sim calibrate`: calibration of a log.
 //! - [`accuracy`]: `host-sim accuracy`: Monte-Carlo accuracy of the self-calibration.
 //! - [`link_check`]: `host-sim link-check`: handshake and checked exchange with the controller.
+//! - [`vision_check`]: `host-sim vision-check`: the mark detector on rendered frames against the truth.
 
 pub mod accuracy;
 pub mod calibrate;
@@ -20,3 +21,4 @@ pub mod link_check;
 pub mod montecarlo;
 pub mod record;
 pub mod run;
+pub mod vision_check;
