@@ -90,3 +90,65 @@ pub fn match_frame(marks: &[MarkImage], blobs: &[Blob]) -> FrameMatch {
     result.spurious = blob_taken.iter().filter(|taken| !**taken).count();
     result
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::world::render::MarkKind;
+
+    fn mark(kind: MarkKind, u: f64, v: f64) -> MarkImage {
+        MarkImage {
+            kind,
+            centre_px: [u, v],
+            region_centroid_px: [u + 0.01, v],
+            radius_px: 2.0,
+            in_view: true,
+            facing: true,
+            hidden_fraction: 0.0,
+            crowded: false,
+        }
+    }
+
+    fn blob(x: f32, y: f32) -> Blob {
+        Blob {
+            x_px: x,
+            y_px: y,
+            area_px: 12,
+            semi_major_px: 2.0,
+            semi_minor_px: 2.0,
+            orientation_rad: 0.0,
+            peak_contrast: 100,
+            mean_contrast: 80.0,
+        }
+    }
+
+    #[test]
+    fn nearest_detections_are_matched_and_the_rest_counted() {
+        let mut hidden = mark(MarkKind::Feature(1), 100.0, 100.0);
+        hidden.hidden_fraction = 0.5;
+        let marks = [
+            mark(MarkKind::Reference, 50.0, 50.0),
+            mark(MarkKind::DiscCentre, 54.0, 50.0),
+            hidden,
+            mark(MarkKind::Effector(0), 200.0, 20.0),
+        ];
+        let blobs = [
+            blob(50.2, 50.0),
+            blob(53.9, 50.1),
+            blob(100.5, 100.0),
+            blob(10.0, 10.0),
+        ];
+        let mut outcome = match_frame(&marks, &blobs);
+        outcome.found.sort_by_key(|f| f.mark);
+        assert_eq!(outcome.visible, 3);
+        assert_eq!(outcome.found.len(), 2);
+        assert!((outcome.found[0].error_px[0] - 0.2).abs() < 1e-5);
+        assert_eq!(outcome.found[0].mark, 0);
+        assert!((outcome.found[0].error_to_region_px[0] - 0.19).abs() < 1e-5);
+        assert_eq!(outcome.found[1].mark, 1);
+        // The partly hidden mark claims its blob without being scored; the
+        // gripper mark is missed; the blob at (10, 10) is spurious.
+        assert_eq!(outcome.missed, vec![3]);
+        assert_eq!(outcome.spurious, 1);
+    }
+}

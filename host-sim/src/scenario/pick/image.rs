@@ -167,3 +167,45 @@ impl ImageSettings {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid_and_bad_values_are_named() {
+        ImageSettings::default().validate().unwrap();
+        ImageSettings::default().noise_free().validate().unwrap();
+        let bad = ImageSettings {
+            mark_reflectance: 1.5,
+            ..ImageSettings::default()
+        };
+        let err = bad.validate().unwrap_err().to_string();
+        assert!(err.contains("image.mark_reflectance"), "{err}");
+        let bad = ImageSettings {
+            k1: f64::NAN,
+            ..ImageSettings::default()
+        };
+        assert!(bad.validate().unwrap_err().to_string().contains("image.k1"));
+        // Experiments without the table get the defaults.
+        let mut skipping = false;
+        let text: String = crate::scenario::pick::DEFAULT_SCENARIO_TOML
+            .lines()
+            .filter(|line| {
+                if line.starts_with("[experiment.image]") {
+                    skipping = true;
+                } else if line.starts_with('[') {
+                    skipping = false;
+                }
+                !skipping
+            })
+            .map(|line| format!("{line}\n"))
+            .collect();
+        assert!(!text.contains("[experiment.image]"));
+        let file = crate::scenario::pick::PickScenarioFile::parse(&text).unwrap();
+        assert!(file
+            .experiment
+            .iter()
+            .all(|e| e.image == ImageSettings::default()));
+    }
+}

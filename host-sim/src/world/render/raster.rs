@@ -1,10 +1,11 @@
 //! Rasterising in image space with analytic coverage: each primitive is
-//! visited only over its bounding box, and a pixel's coverage comes from its
-//! centre's signed distance to the primitive's outline in pixels,
-//! `clamp(0.5 - d, 0, 1)` (exact for a straight edge along a pixel row,
-//! within a few hundredths elsewhere, and symmetric about the edge, so a
-//! round mark's centroid keeps no bias from it). Motion blur averages the
-//! coverage over sub-instants of the exposure.
+//! visited only over its bounding box, and a pixel's coverage comes from the
+//! signed distance `d` to the primitive's outline in pixels, through the ramp
+//! `clamp(0.5 - d, 0, 1)`: for convex outlines (marks, the part) evaluated at
+//! 3 x 3 sub-pixels of the pixels the outline crosses (edge-only
+//! supersampling, close to the exact area a real pixel integrates), for the
+//! arm's capsules at the pixel's centre. Motion blur averages the coverage
+//! over sub-instants of the exposure.
 //!
 //! Hidden surfaces: each pixel keeps the depth (camera z) of its nearest
 //! surface that covers at least half of it; a primitive only paints where it
@@ -156,6 +157,35 @@ pub fn coverage(d: f64) -> f64 {
     (0.5 - d).clamp(0.0, 1.0)
 }
 
+/// Sub-pixels per side where an outline crosses a pixel.
+const EDGE_SUBSAMPLES: usize = 3;
+
+/// Coverage of the pixel centred at `(x, y)` by a convex outline: 0 or 1 away
+/// from its edge; on the edge, the mean over 3 x 3 sub-pixels of the ramp
+/// scaled to a sub-pixel, which is within about 1 % of the exact area (the
+/// ramp over the whole pixel is exact only for edges along the pixel grid,
+/// and would move a 2 px mark's centroid by up to 0.04 px).
+#[inline]
+fn convex_coverage(outline: &ConvexOutline, x: f64, y: f64) -> f64 {
+    let d = outline.distance(x, y);
+    if d >= 1.0 {
+        return 0.0;
+    }
+    if d <= -1.0 {
+        return 1.0;
+    }
+    let n = EDGE_SUBSAMPLES as f64;
+    let mut sum = 0.0;
+    for i in 0..EDGE_SUBSAMPLES {
+        for j in 0..EDGE_SUBSAMPLES {
+            let sx = x + (i as f64 + 0.5) / n - 0.5;
+            let sy = y + (j as f64 + 0.5) / n - 0.5;
+            sum += coverage(n * outline.distance(sx, sy));
+        }
+    }
+    sum / (n * n)
+}
+
 /// Fills the convex outlines of one primitive at the exposure's sub-instants
 /// (coverage averaged over them), painting `albedo` at `depth(x, y)`.
 pub fn fill_convex(
@@ -183,7 +213,7 @@ pub fn fill_convex(
             let (xf, yf) = (x as f64, y as f64);
             let c: f64 = outlines
                 .iter()
-                .map(|o| coverage(o.distance(xf, yf)))
+                .map(|o| convex_coverage(o, xf, yf))
                 .sum::<f64>()
                 * weight;
             if c > 0.0 {
