@@ -219,7 +219,7 @@ pub fn run_trial(experiment: &PickExperiment, seed: u64, options: &CheckOptions)
                 return Ok(());
             }
             triggers += 1;
-            if options.frame_stride > 1 && (triggers - 1) % options.frame_stride != 0 {
+            if options.frame_stride > 1 && !(triggers - 1).is_multiple_of(options.frame_stride) {
                 return Ok(());
             }
             let camera = world.camera().camera();
@@ -291,7 +291,7 @@ pub fn run_trial(experiment: &PickExperiment, seed: u64, options: &CheckOptions)
                 });
             }
 
-            if options.still_every > 0 && (tally.frames - 1) % options.still_every == 0 {
+            if options.still_every > 0 && (tally.frames - 1).is_multiple_of(options.still_every) {
                 let still = scene.without_motion();
                 let started = thread_cpu_s();
                 renderer.render(&still);

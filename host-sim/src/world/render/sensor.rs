@@ -10,9 +10,9 @@ use rand_distr::StandardNormal;
 use super::raster::FrameBuffer;
 use crate::scenario::pick::ImageSettings;
 
-/// The light over the image at one instant: `level * (1 + g (x cos a + y sin a))
-/// * (1 - vignetting (x^2 + y^2) / 2)` in coordinates normalised to the half
-/// image, with the drift folded into the level.
+/// The light over the image at one instant, grey levels per unit
+/// reflectance: `level (1 + g (x cos a + y sin a)) (1 - vignetting (x^2 + y^2) / 2)`
+/// in coordinates normalised to the half image, the drift folded into the level.
 #[derive(Debug, Clone, Copy)]
 pub struct Light {
     level: f64,
