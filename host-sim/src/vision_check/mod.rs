@@ -312,3 +312,40 @@ pub fn run_trial(experiment: &PickExperiment, seed: u64, options: &CheckOptions)
         .with_context(|| format!("the pick of seed {seed}"))?;
     Ok(tally)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::report::{rms_p99, summarise};
+    use super::*;
+    use crate::scenario::pick::PickScenarioFile;
+
+    #[test]
+    fn a_whole_pick_is_seen_and_its_marks_found() {
+        // Every 5th frame of one pick (20 trials, seed 1 give 28,713 marks,
+        // none missed, RMS 0.043 px noise-free, bias at most 0.010 px).
+        let experiment = PickScenarioFile::default_experiment("turning").unwrap();
+        let options = CheckOptions {
+            frame_stride: 5,
+            still_every: 2,
+            keep_frames: true,
+        };
+        let tally = run_trial(&experiment, trial_seed(1, 0), &options).unwrap();
+        assert!(tally.frames > 40, "{}", tally.frames);
+        assert_eq!(tally.kept.len(), tally.frames);
+        let summary = summarise("turning", 1, &tally);
+        let [noise_free, noisy] = [&summary.conditions[0], &summary.conditions[1]];
+        assert!(noise_free.marks > 200, "{noise_free:?}");
+        assert_eq!(noise_free.missed, 0, "{noise_free:?}");
+        assert_eq!(noisy.missed, 0, "{noisy:?}");
+        assert!(noise_free.spurious + noisy.spurious <= 2, "{summary:?}");
+        assert!(
+            noise_free.rms_px < 0.08 && noisy.rms_px < 0.08,
+            "{summary:?}"
+        );
+        assert!(summary.bias_max_px < 0.03, "{summary:?}");
+        let (still, _) = rms_p99(&tally.still_to_centre);
+        assert!(still < 0.08, "{still}");
+        // The gripper was seen.
+        assert!(tally.noisy.visible.get("gripper").copied().unwrap_or(0) > 10);
+    }
+}
