@@ -9,6 +9,7 @@
 //! - [`accuracy`]: the seeded Monte-Carlo accuracy runs of the self-calibration.
 //! - [`log`]: the observation log (JSON Lines) reader and writer.
 //! - [`link`]: links to the controller (in process, emulator UART over TCP, serial port) and the link check.
+//! - [`vision_check`]: the mark detector on rendered camera frames, against the truth.
 //! - [`geometry`]: small geometric helpers with the contract's conventions.
 
 pub mod accuracy;
@@ -20,4 +21,5 @@ pub mod log;
 pub mod pick;
 pub mod recording;
 pub mod scenario;
+pub mod vision_check;
 pub mod world;

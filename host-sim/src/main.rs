@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use host_sim::commands::{
     accuracy, calibrate, calibration_demo, faults, free_run, link_check, montecarlo, record, run,
+    vision_check,
 };
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
@@ -40,6 +41,9 @@ enum Command {
     /// One pick with the plant running free on the host's clock against the
     /// emulated board built with `free-run` (see scripts/qemu-free-run).
     FreeRun(free_run::Args),
+    /// The mark detector on rendered camera frames of seeded picks, against the truth:
+    /// centroid errors, missed and spurious marks, perspective bias, pictures with --out.
+    VisionCheck(vision_check::Args),
 }
 
 fn main() -> ExitCode {
@@ -55,6 +59,7 @@ fn main() -> ExitCode {
         Some(Command::Accuracy(args)) => accuracy::run(args),
         Some(Command::LinkCheck(args)) => link_check::run(args),
         Some(Command::FreeRun(args)) => free_run::run(args),
+        Some(Command::VisionCheck(args)) => vision_check::run(args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

@@ -12,6 +12,7 @@
 //! - [`accuracy`]: `host-sim accuracy`: Monte-Carlo accuracy of the self-calibration.
 //! - [`link_check`]: `host-sim link-check`: handshake and checked exchange with the controller.
 //! - [`free_run`]: `host-sim free-run`: one pick with the plant running free against the emulated board.
+//! - [`vision_check`]: `host-sim vision-check`: the mark detector on rendered frames against the truth.
 
 pub mod accuracy;
 pub mod calibrate;
@@ -22,3 +23,4 @@ pub mod link_check;
 pub mod montecarlo;
 pub mod record;
 pub mod run;
+pub mod vision_check;

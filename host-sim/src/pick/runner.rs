@@ -13,7 +13,8 @@ use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use shared::protocol::{
-    ControllerMode, FaultCause, Message, MessageKind, PickPhase, PickTelemetry, PROTOCOL_VERSION,
+    ActuatorCommand, ControllerMode, FaultCause, Message, MessageKind, PickPhase, PickTelemetry,
+    PROTOCOL_VERSION,
 };
 
 use super::record::{
@@ -194,6 +195,18 @@ pub fn run_pick<L: ByteLink>(
     seed: u64,
     link: &mut FramedLink<L>,
 ) -> Result<PickRun> {
+    run_pick_observed(experiment, seed, link, &mut |_, _| Ok(()))
+}
+
+/// [`run_pick`], showing `observe` the world and the command of every
+/// period just before the world applies it (a frame triggered by that
+/// command is exposed at this instant). It only looks: the run is the same.
+pub fn run_pick_observed<L: ByteLink>(
+    experiment: &PickExperiment,
+    seed: u64,
+    link: &mut FramedLink<L>,
+    observe: &mut dyn FnMut(&World, &ActuatorCommand) -> Result<()>,
+) -> Result<PickRun> {
     let mut world = World::new(experiment, seed)
         .with_context(|| format!("building the world of {} (seed {seed})", experiment.name))?;
     let mut tally = LinkRecord::default();
@@ -350,6 +363,7 @@ pub fn run_pick<L: ByteLink>(
             )
         };
         let had_grasp = world.grasp().is_some();
+        observe(&world, &command)?;
         world
             .apply(&command)
             .with_context(|| format!("world step at t = {now:.3} s"))?;

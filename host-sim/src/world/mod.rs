@@ -9,6 +9,7 @@
 //! - [`dimensions`]: the disc's radius and the PUMA 560's shoulder height.
 //! - [`camera`]: the pinhole camera of the contract.
 //! - [`vision`]: the camera and its vision computer as the controller meets them.
+//! - [`render`]: the camera's grey image of each frame (for measuring the mark detector).
 //! - [`plant`]: the PUMA 560 in `f64` with armature and friction, integrated by RK4,
 //!   with its drives' torque saturation and quantised joint encoders.
 //! - [`conveyor`]: the disc with speed ripple and a wrapping quadrature encoder.
@@ -22,6 +23,7 @@ pub mod effector;
 pub mod generator;
 pub mod gripper;
 pub mod plant;
+pub mod render;
 pub mod vision;
 pub mod workcell;
 

@@ -12,8 +12,11 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
+mod image;
 mod settings;
 mod validate;
+
+pub use image::ImageSettings;
 
 pub use settings::{
     CameraBump, CameraFaults, CameraSettings, CellSettings, ConveyorSettings, FaultWindow,
@@ -45,6 +48,10 @@ pub struct PickExperiment {
     pub time_limit_s: f64,
     pub conveyor: ConveyorSettings,
     pub camera: CameraSettings,
+    /// The rendered camera image (optional; defaults when absent). Only the
+    /// renderer reads it: the controller's labelled points do not change.
+    #[serde(default)]
+    pub image: ImageSettings,
     pub part: PartSettings,
     pub robot: RobotSettings,
     pub gripper: GripperSettings,

@@ -82,6 +82,7 @@ impl PickExperiment {
         if self.name.trim().is_empty() {
             bail!("name must not be empty");
         }
+        self.image.validate()?;
         check(
             "time_limit_s",
             self.time_limit_s,
