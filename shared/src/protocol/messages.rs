@@ -1,4 +1,4 @@
-//! The messages of protocol v1. They are postcard-encoded, so the order of
+//! The messages of protocol v3. They are postcard-encoded, so the order of
 //! fields and of enum variants is part of the wire format: append, never reorder.
 
 use heapless::{String, Vec};
@@ -182,7 +182,7 @@ impl ErrorCode {
     }
 }
 
-/// Every message of protocol v1.
+/// Every message of protocol v3.
 ///
 /// Camera frames make this enum large (~330 bytes); there is no heap to box them
 /// and messages live on the stack only while being handled.

@@ -1,4 +1,4 @@
-//! Serial protocol v1 between the vision computer / simulator and the controller.
+//! Serial protocol v3 between the vision computer / simulator and the controller.
 //!
 //! - Messages ([`Message`]) are postcard-encoded (varints, compact enums).
 //! - Each is followed by a CRC-32 (ISO-HDLC, little-endian) of its payload.
@@ -25,7 +25,7 @@ pub use frame::{
 pub use messages::*;
 
 /// The protocol version this code speaks.
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 3;
 
 #[cfg(test)]
 mod tests;
