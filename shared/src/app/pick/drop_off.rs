@@ -47,7 +47,7 @@ pub fn check_drop_off(
     let swing = libm::asinf((offset / radius).min(1.0));
     let azimuth = libm::atan2f(drop_off_base.y, drop_off_base.x);
     let limits = model.joint_limits();
-    let (low, high) = (limits.position_min[0], limits.position_max[0]);
+    let (low, high) = (limits.position_min.x, limits.position_max.x);
     if azimuth - swing < low || azimuth + swing > high {
         return Err(ConfigError::new(FIELD, "is beyond joint 1's range"));
     }
