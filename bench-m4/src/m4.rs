@@ -254,7 +254,6 @@ fn pick_tick(timer: &timer::DualTimer, model: &Puma560<f32>, q: &Joints<f32>) {
         f_px: 300.0,
         cx_px: 128.0,
         cy_px: 128.0,
-        pixel_sigma_px: 0.5,
         reference_radius_m: 0.4,
         part_feature_count: 4,
         conveyor_counts_per_rev: 4096,

@@ -16,7 +16,7 @@
 //! - [`control`]: task-space computed-torque control (Eq 23).
 //! - [`detection`]: bright round marks in a grayscale image, sub-pixel, in fixed memory (the vision front end).
 //! - [`kernels`]: straight-line small-vector kernels of the control period.
-//! - [`protocol`]: serial protocol v2 (postcard messages, CRC-checked, COBS-framed).
+//! - [`protocol`]: serial protocol v3 (postcard messages, CRC-checked, COBS-framed).
 //! - [`safety`]: the drive interlock, parking, reconfiguration and the drives' wiring signs (drives that fail safe).
 //! - [`app`]: the controller application (the session and the pick) that the firmware and the in-process simulator both run.
 #![cfg_attr(not(test), no_std)]
@@ -67,7 +67,10 @@ mod tests {
             message(crate::calibration::CalibrationError::CameraBelowDisc),
             message(crate::app::vision::VisionError::UnknownTrigger { trigger_id: 7 }),
             message(crate::app::joint_observer::JointObserverError::NonFinite),
-            message(crate::app::pick::cell::ConfigError { field: "f_px" }),
+            message(crate::app::pick::cell::ConfigError::new(
+                "f_px",
+                "is out of range",
+            )),
             message(crate::protocol::EncodeError::OutputTooSmall),
             message(crate::protocol::DecodeError::Corrupt),
         ];

@@ -141,6 +141,10 @@ pub struct CalibrationQuality {
     /// Detections rejected as gross outliers.
     #[serde(default)]
     pub outliers_rejected: u32,
+    /// Pixel noise measured from the residuals at the estimate: a robust
+    /// per-axis standard deviation, px (0 when not measured).
+    #[serde(default)]
+    pub pixel_sigma_px: f64,
 }
 
 /// What a calibration of a log prints.

@@ -10,7 +10,6 @@ pub fn test_cell_config(conveyor_counts_per_rev: u32, part_feature_count: u8) ->
         f_px: 300.0,
         cx_px: 128.0,
         cy_px: 128.0,
-        pixel_sigma_px: 0.5,
         reference_radius_m: 0.4,
         part_feature_count,
         conveyor_counts_per_rev,

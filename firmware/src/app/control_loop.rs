@@ -156,7 +156,11 @@ fn configure(
             true
         }
         Err(e) => {
-            defmt::error!("control loop: configuration refused: {}", e.field);
+            defmt::error!(
+                "control loop: configuration refused: {} {}",
+                e.field,
+                e.reason
+            );
             *pick = None;
             false
         }

@@ -56,7 +56,7 @@ fn build(slot: &mut Option<(u32, PickWorker)>, configured: &Configured) {
     *slot = None;
     match PickWorker::new(&configured.config, PickSettings::default()) {
         Ok(worker) => *slot = Some((configured.session, worker)),
-        Err(e) => defmt::error!("worker: configuration refused: {}", e.field),
+        Err(e) => defmt::error!("worker: configuration refused: {} {}", e.field, e.reason),
     }
 }
 

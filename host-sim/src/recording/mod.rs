@@ -200,6 +200,7 @@ pub fn simulate(scenario: &Scenario, seed: u64) -> Result<SimulatedRun, Generati
         rms_reprojection_px,
         effector_frames_used: effector_frames,
         outliers_rejected: stats.outliers,
+        pixel_sigma_px: scenario.pixel_sigma_px,
     };
     let truth = TruthFile {
         result: workcell.truth(quality),

@@ -244,13 +244,12 @@ pub fn new_report(control: &PickController, reported: &mut u32) -> Option<Calibr
 }
 
 /// `CellConfig`'s fields in declaration order, for the error report's detail.
-const CONFIG_FIELDS: [&str; 15] = [
+const CONFIG_FIELDS: [&str; 14] = [
     "image_width_px",
     "image_height_px",
     "f_px",
     "cx_px",
     "cy_px",
-    "pixel_sigma_px",
     "reference_radius_m",
     "part_feature_count",
     "conveyor_counts_per_rev",

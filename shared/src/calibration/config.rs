@@ -6,7 +6,13 @@ pub struct CalibrationConfig {
     /// Experiment 2 of the paper: the disc plane's height in the base frame is known.
     /// Then `base_from_disc.translation_m[2]` is this value and Eq 10 is not needed for depth.
     pub disc_height_in_base_m: Option<f64>,
-    /// Pixel noise standard deviation assumed by gating / weighting (default 0.5).
+    /// Prior of the pixel noise's standard deviation, px (default 0.5, a
+    /// sub-pixel detector's nominal accuracy; nothing the cell states). It
+    /// sizes the gates that clean the reference track and the first Huber
+    /// loss before any fit exists, and floors the refinement's outlier gate;
+    /// the refinement then measures the noise from its residuals
+    /// ([`CalibrationQuality::pixel_sigma_px`](crate::observation::CalibrationQuality))
+    /// and weighs and gates with that.
     pub pixel_sigma: f64,
     /// Huber threshold of the refinement, in units of the (robustly estimated) pixel sigma:
     /// residuals beyond it count linearly, so a gross outlier cannot dominate (default 3).

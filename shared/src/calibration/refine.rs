@@ -78,6 +78,9 @@ pub struct Refined {
     pub model: WorkcellModel,
     /// RMS 2-D reprojection distance over the points kept (px).
     pub rms_px: f64,
+    /// The pixel noise measured from the residuals at the optimum: a robust
+    /// per-axis standard deviation (px), which overrides the configured prior.
+    pub pixel_sigma_px: f64,
     /// Points beyond the gate.
     pub outliers: u32,
     /// Inverse of the Gauss-Newton information matrix scaled by sigma^2: the parameter
@@ -188,7 +191,8 @@ fn minimise(
 }
 
 /// Robust scale of the residual norms from a fixed histogram (memory independent of the
-/// number of points): median of a 2-D Gaussian residual's norm is 1.1774 sigma.
+/// number of points): median of a 2-D Gaussian residual's norm is 1.1774 sigma. The
+/// histogram spans 32 `nominal_sigma`; the median is interpolated within its bin.
 /// Out of line, so that its histogram is not in `fit`'s frame under `minimise`.
 #[inline(never)]
 fn robust_sigma(problem: &Problem<'_>, model: &WorkcellModel, nominal_sigma: f64) -> f64 {
@@ -217,16 +221,26 @@ fn robust_sigma(problem: &Problem<'_>, model: &WorkcellModel, nominal_sigma: f64
             total += 1;
         },
     );
-    let half = total / 2;
+    let half = f64::from(total) / 2.0;
     let mut running = 0u32;
     for (bin, count) in histogram.iter().enumerate() {
+        let before = f64::from(running);
         running += count;
-        if running > half {
-            let median = (bin as f64 + 0.5) * bin_width;
+        if f64::from(running) > half {
+            let within = (half - before) / f64::from((*count).max(1));
+            let median = (bin as f64 + within) * bin_width;
             return median / 1.1774;
         }
     }
     nominal_sigma * RANGE_SIGMAS
+}
+
+/// The pixel noise of `model`'s residuals: a first robust scale on the prior's
+/// histogram, then a second on a histogram sized by the first (fine bins
+/// whatever the noise is, between a sixteenth and 16 times the prior).
+pub(super) fn measured_sigma(problem: &Problem<'_>, model: &WorkcellModel, prior: f64) -> f64 {
+    let first = robust_sigma(problem, model, prior).clamp(prior / 16.0, prior * 16.0);
+    robust_sigma(problem, model, first)
 }
 
 /// The fit of both phases before its covariance.
@@ -250,9 +264,11 @@ pub fn refine(
 ) -> Result<Refined, CalibrationError> {
     let fit = fit(problem, start, config)?;
     let covariance = covariance_at(problem, &fit.model, fit.gate_px, fit.rms_px);
+    let pixel_sigma_px = measured_sigma(problem, &fit.model, config.pixel_sigma);
     Ok(Refined {
         model: fit.model,
         rms_px: fit.rms_px,
+        pixel_sigma_px,
         outliers: fit.outliers,
         covariance,
     })

@@ -1,5 +1,6 @@
-//! The messages of protocol v2 (v1's, with `TriggerEvent` and
-//! `CostUnit::Nanoseconds` appended). They are postcard-encoded, so the order of
+//! The messages of protocol v3 (v1's, with `TriggerEvent` and
+//! `CostUnit::Nanoseconds` appended in v2; `CellConfig` without the pixel
+//! noise in v3). They are postcard-encoded, so the order of
 //! fields and of enum variants is part of the wire format: append, never reorder.
 
 use heapless::{String, Vec};
@@ -183,7 +184,7 @@ impl ErrorCode {
     }
 }
 
-/// Every message of protocol v2.
+/// Every message of protocol v3.
 ///
 /// Camera frames make this enum large (~330 bytes); there is no heap to box them
 /// and messages live on the stack only while being handled.

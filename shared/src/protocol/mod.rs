@@ -1,4 +1,4 @@
-//! Serial protocol v2 between the vision computer / simulator and the controller.
+//! Serial protocol v3 between the vision computer / simulator and the controller.
 //!
 //! - Messages ([`Message`]) are postcard-encoded (varints, compact enums).
 //! - Each is followed by a CRC-32 (ISO-HDLC, little-endian) of its payload.
@@ -29,9 +29,11 @@ pub use messages::*;
 /// goes up when a peer of the previous version could not decode what this
 /// one sends unasked. v2: `Message::TriggerEvent` (the controller sends it
 /// on every camera trigger of its ticker, which a v1 host would refuse as a
-/// bad frame five times a second) and `CostUnit::Nanoseconds`. The handshake
+/// bad frame five times a second) and `CostUnit::Nanoseconds`.
+/// v3: `CellConfig` without `pixel_sigma_px` (the controller measures the
+/// pixel noise from its residuals). The handshake
 /// refuses any other version with `UnsupportedVersion` (detail: this one).
-pub const PROTOCOL_VERSION: u16 = 2;
+pub const PROTOCOL_VERSION: u16 = 3;
 
 #[cfg(test)]
 mod tests;

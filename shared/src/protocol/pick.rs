@@ -1,4 +1,4 @@
-//! Messages of the pick session (appended to protocol v1; see [`super::Message`]).
+//! Messages of the pick session (protocol v3; see [`super::Message`]).
 //!
 //! The host (simulator or vision computer) first sends [`CellConfig`]: what an
 //! integrator knows without calibrating anything (the camera's intrinsics, the
@@ -25,8 +25,6 @@ pub struct CellConfig {
     pub cx_px: f32,
     /// Principal point, row, pixels.
     pub cy_px: f32,
-    /// Standard deviation of a detection, pixels (weights the estimator).
-    pub pixel_sigma_px: f32,
     /// The paper's L: distance from the disc centre to the reference mark.
     pub reference_radius_m: f32,
     /// Feature points the vision computer reports on the part (2..=8).

@@ -1,4 +1,4 @@
-//! Property tests of protocol v2: round trips, garbage, corruption.
+//! Property tests of protocol v3: round trips, garbage, corruption.
 use super::*;
 use heapless::{String, Vec};
 use proptest::collection::vec as pvec;

@@ -44,6 +44,15 @@ pub struct PickExperiment {
     /// The paper's experiment 2: the controller is told the disc surface's height
     /// in the base frame (experiment 1 finds it from the effector marks).
     pub disc_height_known: bool,
+    /// The tolerance of the user's measurement of the disc surface's height, m:
+    /// with `disc_height_known` the controller is told the true height plus an
+    /// error drawn uniformly within +-this (default 3 mm).
+    #[serde(default = "default_disc_height_tolerance_m")]
+    pub disc_height_tolerance_m: f64,
+    /// Where the user wants picked parts: the part's grasp point on the bin,
+    /// base frame, m. The world draws its layouts with the disc clear of it.
+    #[serde(default = "default_drop_off_base_m")]
+    pub drop_off_base_m: [f64; 3],
     /// Simulated seconds after which the run is abandoned as timed out.
     pub time_limit_s: f64,
     pub conveyor: ConveyorSettings,
@@ -62,6 +71,16 @@ pub struct PickExperiment {
     /// Faults the world injects during the run (none by default).
     #[serde(default, skip_serializing_if = "WorldFaults::is_none")]
     pub faults: WorldFaults,
+}
+
+fn default_disc_height_tolerance_m() -> f64 {
+    0.003
+}
+
+/// Beside the robot, 120 degrees round from its front, 0.55 m from the base
+/// axis and 0.3 m above its foot.
+fn default_drop_off_base_m() -> [f64; 3] {
+    [-0.275, 0.476, 0.3]
 }
 
 impl PickScenarioFile {

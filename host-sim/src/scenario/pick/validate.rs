@@ -90,6 +90,19 @@ impl PickExperiment {
             "> 0",
         )?;
 
+        check(
+            "disc_height_tolerance_m",
+            self.disc_height_tolerance_m,
+            (0.0..=0.05).contains(&self.disc_height_tolerance_m),
+            "in [0, 0.05]",
+        )?;
+        if !self.drop_off_base_m.iter().all(|x| x.is_finite()) {
+            bail!(
+                "drop_off_base_m = {:?} must be finite",
+                self.drop_off_base_m
+            );
+        }
+
         let l = &self.cell;
         for (field, [low, high], min, max) in [
             ("cell.disc_distance_m", l.disc_distance_m, 0.65, 1.2),

@@ -1,6 +1,8 @@
 //! Building the world of one experiment: the drawn workcell, the plant with
 //! its true link masses, the encoders, the conveyor (its stop chosen so that the
-//! part comes to rest in front of the robot), the camera and the drop-off.
+//! part comes to rest in front of the robot), the camera, and the user's
+//! measurement of the disc's height. The layout is drawn clear of the user's
+//! drop-off.
 
 use std::f64::consts::TAU;
 
@@ -12,16 +14,18 @@ use shared::fusion::CounterWidth;
 use shared::robot::JointVector;
 
 use super::{
-    mean, PartState, World, DROP_OFF_DISTANCE_M, DROP_OFF_HEIGHT_M, DROP_OFF_TURN_RAD,
-    STOP_REACH_M, STOP_SEARCH_STEP_S, TOOL_PAYLOAD_COM_FLANGE_M,
+    mean, PartState, World, DROP_OFF_CLEARANCE_M, MAX_LAYOUT_DRAWS, STOP_REACH_M,
+    STOP_SEARCH_STEP_S, TOOL_PAYLOAD_COM_FLANGE_M,
 };
 use crate::scenario::pick::PickExperiment;
 use crate::scenario::recording::{DiscPlacement, FeatureHeights, Scenario};
 use crate::world::conveyor::{Conveyor, ConveyorProfile, ConveyorStop, MissedBurst, SpeedRamp};
+use crate::world::dimensions::DISC_RADIUS_M;
 use crate::world::generator::random_workcell;
 use crate::world::gripper::GraspTolerance;
 use crate::world::plant::{JointEncoders, RobotPlant};
 use crate::world::vision::CameraSim;
+use crate::world::workcell::Workcell;
 
 /// The recorder's scenario with this experiment's part and camera tilt: the
 /// workcell generator's ranges (Section 5's setup) do the rest.
@@ -98,11 +102,51 @@ fn stop_instant_for_rest_angle(
     bail!("no conveyor stop instant within {horizon_s:.1} s puts the part in front of the robot")
 }
 
+/// Whether the disc's rim keeps [`DROP_OFF_CLEARANCE_M`] from `drop_off_base`
+/// (horizontally, base frame).
+pub(super) fn disc_clear_of(workcell: &Workcell, drop_off_base: &Vector3<f64>) -> bool {
+    let gap = (workcell.base_from_disc_translation_m - drop_off_base)
+        .xy()
+        .norm();
+    gap >= DISC_RADIUS_M + DROP_OFF_CLEARANCE_M
+}
+
+/// A workcell from the experiment's ranges with the disc clear of the user's
+/// drop-off: the world adapts its layout to the bin, never the bin to the
+/// layout (layouts too close are drawn again).
+pub(super) fn clear_workcell(
+    rng: &mut ChaCha8Rng,
+    experiment: &PickExperiment,
+) -> Result<Workcell> {
+    let scenario = workcell_scenario(experiment);
+    let drop_off_base = Vector3::from(experiment.drop_off_base_m);
+    for _ in 0..MAX_LAYOUT_DRAWS {
+        let (workcell, _) = random_workcell(rng, &scenario)?;
+        if disc_clear_of(&workcell, &drop_off_base) {
+            return Ok(workcell);
+        }
+    }
+    bail!(
+        "no layout of the cell ranges in {MAX_LAYOUT_DRAWS} draws keeps the disc \
+         {DROP_OFF_CLEARANCE_M} m clear of drop_off_base_m = {:?}",
+        experiment.drop_off_base_m
+    )
+}
+
 impl World {
     pub fn new(experiment: &PickExperiment, seed: u64) -> Result<Self> {
         experiment.validate().context("pick experiment")?;
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let (workcell, _) = random_workcell(&mut rng, &workcell_scenario(experiment))?;
+        let workcell = clear_workcell(&mut rng, experiment)?;
+        Self::with_workcell(experiment, workcell, rng)
+    }
+
+    /// The world of `experiment` around `workcell`, the rest drawn from `rng`.
+    pub(super) fn with_workcell(
+        experiment: &PickExperiment,
+        workcell: Workcell,
+        mut rng: ChaCha8Rng,
+    ) -> Result<Self> {
         let error = experiment.robot.link_mass_error;
         let link_mass_scale: [f64; 6] =
             core::array::from_fn(|_| 1.0 - error + 2.0 * error * rng.random::<f64>());
@@ -196,16 +240,13 @@ impl World {
         }
 
         let camera = CameraSim::new(workcell.camera.clone(), &experiment.camera, camera_seed)?;
-        // Beside the disc, 100 degrees round from it towards the robot's front
-        // (+X), well inside joint 1's range and clear of the disc's footprint.
-        let disc = workcell.base_from_disc_translation_m;
-        let disc_azimuth = disc.y.atan2(disc.x);
-        let away = disc_azimuth - DROP_OFF_TURN_RAD.copysign(disc_azimuth);
-        let drop_off_base = Vector3::new(
-            DROP_OFF_DISTANCE_M * away.cos(),
-            DROP_OFF_DISTANCE_M * away.sin(),
-            DROP_OFF_HEIGHT_M,
-        );
+        // The user's measurement of the disc surface's height, within its
+        // tolerance (drawn in every experiment, so the stream stays the same).
+        let height_error = experiment.disc_height_tolerance_m * (2.0 * rng.random::<f64>() - 1.0);
+        let disc_height_measured_m = experiment
+            .disc_height_known
+            .then_some(workcell.base_from_disc_translation_m.z + height_error);
+        let drop_off_base = Vector3::from(experiment.drop_off_base_m);
         Ok(Self {
             experiment: experiment.clone(),
             tolerance: GraspTolerance::from_settings(&experiment.gripper),
@@ -223,6 +264,7 @@ impl World {
             placed_base: None,
             last_tau: JointVector::zeros(),
             drop_off_base,
+            disc_height_measured_m,
             camera_bumped: false,
             unattended_ticks: 0,
         })

@@ -18,8 +18,6 @@
 //! Building the world of an experiment is in `build.rs`; one control period
 //! and the part's motion are in `motion.rs`.
 
-use std::f64::consts::PI;
-
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use shared::protocol::{CameraFeatureFrame, CellConfig, SensorSample, JOINTS};
@@ -34,17 +32,19 @@ use super::workcell::Workcell;
 use crate::scenario::pick::PickExperiment;
 
 mod build;
+#[cfg(test)]
+mod config_tests;
 mod motion;
 #[cfg(test)]
 mod tests;
 
-/// The drop-off: this far from the base axis, opposite the disc, this high.
-pub const DROP_OFF_DISTANCE_M: f64 = 0.55;
-pub const DROP_OFF_HEIGHT_M: f64 = 0.3;
+/// Least horizontal gap between the disc's rim and the user's drop-off, m:
+/// the world draws its layouts with the disc this far from the bin.
+pub const DROP_OFF_CLEARANCE_M: f64 = 0.1;
+/// Draws of the layout at most, for one with the disc clear of the drop-off.
+const MAX_LAYOUT_DRAWS: usize = 100;
 /// Distance from the base axis at which a stopped disc leaves the part, m.
 pub const STOP_REACH_M: f64 = 0.6;
-/// Azimuth between the disc centre and the drop-off, rad (100 degrees).
-pub const DROP_OFF_TURN_RAD: f64 = 100.0 * PI / 180.0;
 /// The unknown tool payload sits halfway down the gripper, on the flange's axis.
 const TOOL_PAYLOAD_COM_FLANGE_M: [f64; 3] = [0.0, 0.0, shared::app::tool::TOOL_LENGTH_M / 2.0];
 /// Telemetry period the world asks for, seconds (50 Hz).
@@ -123,6 +123,9 @@ pub struct World {
     placed_base: Option<[f64; 3]>,
     last_tau: JointVector<f64>,
     drop_off_base: Vector3<f64>,
+    /// The disc surface's height as the user measured it (experiment 2 only):
+    /// the truth plus an error within the scenario's tolerance.
+    disc_height_measured_m: Option<f64>,
     /// The camera was knocked to its new pose (the bump fault has happened).
     camera_bumped: bool,
     /// Consecutive periods without a command (a stall), for the drives' watchdog.
@@ -157,8 +160,10 @@ pub struct CellLayout {
 
 impl World {
     /// What an integrator tells the controller: intrinsics (A5), L, the encoders'
-    /// scales, the drop-off and (experiment 2 only) the disc surface's height.
-    /// Nothing calibrated: no camera pose, no base pose, no part.
+    /// scales, the user's drop-off and (experiment 2 only) the disc surface's
+    /// height as measured, within its tolerance. Nothing calibrated and nothing
+    /// read off the world's truth: no camera pose, no base pose, no part, no
+    /// pixel noise (the controller measures it from its residuals).
     pub fn cell_config(&self) -> CellConfig {
         let intrinsics = self.workcell.camera.intrinsics;
         let rate = self.experiment.robot.control_rate_hz;
@@ -168,16 +173,12 @@ impl World {
             f_px: intrinsics.f_px as f32,
             cx_px: intrinsics.cx as f32,
             cy_px: intrinsics.cy as f32,
-            pixel_sigma_px: self.experiment.camera.pixel_sigma_px as f32,
             reference_radius_m: self.workcell.reference_radius_m as f32,
             part_feature_count: self.experiment.part.feature_count,
             conveyor_counts_per_rev: self.conveyor.counts_per_rev(),
             conveyor_counter_bits: self.conveyor.width().bits(),
             joint_counts_per_rad: self.encoders.counts_per_rad.map(|c| c as f32),
-            disc_height_in_base_m: self
-                .experiment
-                .disc_height_known
-                .then_some(self.workcell.base_from_disc_translation_m.z as f32),
+            disc_height_in_base_m: self.disc_height_measured_m.map(|z| z as f32),
             drop_off_base_m: array(&self.drop_off_base).map(|x| x as f32),
             camera_period_ms: self.experiment.camera.frame_period_ms,
             telemetry_period_ticks: (rate * TELEMETRY_PERIOD_S).round().clamp(1.0, 65_535.0) as u16,

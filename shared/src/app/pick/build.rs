@@ -7,6 +7,7 @@ use nalgebra::Vector3;
 
 use super::camera_trigger::CameraTrigger;
 use super::cell::{Cell, ConfigError};
+use super::drop_off::check_drop_off;
 use super::job_slot::JobSlot;
 use super::motion::Motion;
 use super::pairing::FramePairer;
@@ -28,9 +29,7 @@ use crate::robot::{DriveOptions, JointVector, Puma560, SIMULATOR_COULOMB_WIDTH};
 
 /// Eq 23's gains for the pick (see [`ControllerConfig::puma560`]).
 fn controller_config() -> Result<ControllerConfig<f32>, ConfigError> {
-    ControllerConfig::puma560().map_err(|_| ConfigError {
-        field: "controller gains",
-    })
+    ControllerConfig::puma560().map_err(|_| ConfigError::new("controller gains", "cannot be built"))
 }
 
 /// The pick's three parts for one cell configuration.
@@ -74,9 +73,7 @@ pub(super) fn controller_model() -> Result<Puma560<f32>, ConfigError> {
             friction: true,
         })
         .try_with_coulomb_smoothing(SIMULATOR_COULOMB_WIDTH)
-        .map_err(|_| ConfigError {
-            field: "controller model",
-        })?
+        .map_err(|_| ConfigError::new("controller model", "cannot be built"))?
         .cast::<f32>())
 }
 
@@ -116,14 +113,16 @@ impl PickController {
     ) -> Result<Self, ConfigError> {
         let cell = Cell::new(config)?;
         let conveyor = ConveyorFilter::new(config.conveyor_counts_per_rev, cell.counter_width, 1.0)
-            .map_err(|_| ConfigError {
-                field: "conveyor_counts_per_rev",
+            .map_err(|_| {
+                ConfigError::new(
+                    "conveyor_counts_per_rev",
+                    "is refused by the conveyor filter",
+                )
             })?;
         let model = model_of(previous)?;
-        let controller =
-            TaskSpaceController::new(controller_config()?).map_err(|_| ConfigError {
-                field: "controller gains",
-            })?;
+        check_drop_off(&model, &cell.drop_off_base, &settings)?;
+        let controller = TaskSpaceController::new(controller_config()?)
+            .map_err(|_| ConfigError::new("controller gains", "cannot be built"))?;
         let rest = TaskState::at_rest(Vector3::zeros(), 0.0);
         Ok(PickController {
             cell,
@@ -160,7 +159,6 @@ impl PickController {
                 residual_px: settings.view_residual_px,
                 strikes: settings.view_strikes,
                 slip_tolerance_m: settings.slip_tolerance_m,
-                pixel_sigma_px: config.pixel_sigma_px,
             }),
             flange_measured: Vector3::zeros(),
             part_in_gripper: false,

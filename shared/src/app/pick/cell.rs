@@ -9,16 +9,26 @@ use crate::fusion::CounterWidth;
 use crate::observation::{CameraIntrinsics, LogHeader, LOG_VERSION, MAX_PART_FEATURES};
 use crate::protocol::CellConfig;
 
-/// A configuration value out of range; `field` names it as in [`CellConfig`].
+/// A configuration value out of range; `field` names it as in [`CellConfig`]
+/// and `reason` says why.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ConfigError {
     /// The [`CellConfig`] field out of range.
     pub field: &'static str,
+    /// Why it is refused.
+    pub reason: &'static str,
+}
+
+impl ConfigError {
+    /// `field` refused because of `reason`.
+    pub const fn new(field: &'static str, reason: &'static str) -> Self {
+        Self { field, reason }
+    }
 }
 
 impl core::fmt::Display for ConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        write!(f, "cell configuration: {} is out of range", self.field)
+        write!(f, "cell configuration: {} {}", self.field, self.reason)
     }
 }
 
@@ -39,7 +49,7 @@ fn check(ok: bool, field: &'static str) -> Result<(), ConfigError> {
     if ok {
         Ok(())
     } else {
-        Err(ConfigError { field })
+        Err(ConfigError::new(field, "is out of range"))
     }
 }
 
@@ -55,7 +65,6 @@ impl Cell {
         check(positive(config.f_px), "f_px")?;
         check(config.cx_px.is_finite(), "cx_px")?;
         check(config.cy_px.is_finite(), "cy_px")?;
-        check(positive(config.pixel_sigma_px), "pixel_sigma_px")?;
         check(positive(config.reference_radius_m), "reference_radius_m")?;
         check(
             (2..=MAX_PART_FEATURES).contains(&usize::from(config.part_feature_count)),
@@ -69,9 +78,10 @@ impl Cell {
             16 => CounterWidth::Bits16,
             32 => CounterWidth::Bits32,
             _ => {
-                return Err(ConfigError {
-                    field: "conveyor_counter_bits",
-                })
+                return Err(ConfigError::new(
+                    "conveyor_counter_bits",
+                    "is neither 16 nor 32",
+                ))
             }
         };
         check(
@@ -116,7 +126,6 @@ impl Cell {
     pub fn calibration_config(&self) -> CalibrationConfig {
         CalibrationConfig {
             disc_height_in_base_m: self.config.disc_height_in_base_m.map(f64::from),
-            pixel_sigma: f64::from(self.config.pixel_sigma_px),
             ..CalibrationConfig::default()
         }
     }

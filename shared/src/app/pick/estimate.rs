@@ -25,6 +25,9 @@ pub struct CellEstimate {
     pub disc_from_camera: Matrix3<f64>,
     /// The camera's centre in the disc frame (with `disc_from_camera`).
     pub camera_centre_disc: Vector3<f64>,
+    /// The pixel noise the calibration measured from its residuals (1-sigma,
+    /// px): what the view monitor's noise floor is sized by.
+    pub pixel_sigma_px: f32,
     /// The estimate as telemetry reports it.
     pub report: CalibrationReport,
 }
@@ -77,6 +80,7 @@ impl CellEstimate {
             part_yaw_rotating: result.part.yaw_rad as f32,
             disc_from_camera: rotation,
             camera_centre_disc: Vector3::new(cx, cy, cz),
+            pixel_sigma_px: result.quality.pixel_sigma_px as f32,
             report,
         }
     }

@@ -30,6 +30,7 @@ pub mod brake;
 mod build;
 mod camera_trigger;
 pub mod cell;
+pub mod drop_off;
 pub mod estimate;
 pub mod handoff;
 mod io;

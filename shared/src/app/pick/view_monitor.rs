@@ -36,9 +36,6 @@ pub struct ViewLimits {
     pub strikes: u8,
     /// Largest movement of the part along its circle a slip may cause, m.
     pub slip_tolerance_m: f32,
-    /// Image noise (1-sigma, px): the slip limit never goes below what noise
-    /// alone could reach.
-    pub pixel_sigma_px: f32,
 }
 
 /// The camera model the monitor predicts with, in the control loop's f32.
@@ -88,6 +85,9 @@ pub struct ViewMonitor {
     limits: ViewLimits,
     projector: Option<Projector>,
     slip_limit_rad: f32,
+    /// Image noise (1-sigma, px) the calibration measured from its residuals:
+    /// the slip limit never goes below what noise alone could reach.
+    pixel_sigma_px: f32,
     camera_strikes: u8,
     slip_strikes: u8,
     recent: [f32; SLIP_WINDOW],
@@ -103,6 +103,7 @@ impl ViewMonitor {
             limits,
             projector: None,
             slip_limit_rad: f32::INFINITY,
+            pixel_sigma_px: 0.0,
             camera_strikes: 0,
             slip_strikes: 0,
             recent: [0.0; SLIP_WINDOW],
@@ -123,6 +124,7 @@ impl ViewMonitor {
         *self = Self::new(limits);
         let part_radius_m = estimate.part_rotating.xy().norm().max(0.05);
         self.slip_limit_rad = limits.slip_tolerance_m / part_radius_m;
+        self.pixel_sigma_px = estimate.pixel_sigma_px;
         self.projector = Some(Projector {
             camera_from_disc: estimate.disc_from_camera.transpose().cast::<f32>(),
             camera_centre_disc: estimate.camera_centre_disc.cast::<f32>(),
@@ -185,7 +187,7 @@ impl ViewMonitor {
                 // Noise alone moves one offset by sigma / |tangent|; the median of
                 // five has about 0.55 of that spread, and stays within 3 (over 5
                 // of its own sigmas).
-                let noise_floor = 3.0 * self.limits.pixel_sigma_px / tangent_px_per_rad;
+                let noise_floor = 3.0 * self.pixel_sigma_px / tangent_px_per_rad;
                 slip_evidence = Some((along_rad, noise_floor));
             }
         }
@@ -267,6 +269,7 @@ mod tests {
                 rms_reprojection_px: 0.5,
                 effector_frames_used: 8,
                 outliers_rejected: 0,
+                pixel_sigma_px: 0.5,
             },
         };
         CellEstimate::new(&result, &EstimateUncertainty::default(), 0)
@@ -277,7 +280,6 @@ mod tests {
             residual_px: 6.0,
             strikes: 4,
             slip_tolerance_m: 0.003,
-            pixel_sigma_px: 0.5,
         });
         monitor.arm(&estimate(), &camera(), L);
         monitor
@@ -347,7 +349,6 @@ mod tests {
             residual_px: 6.0,
             strikes: 1,
             slip_tolerance_m: 0.003,
-            pixel_sigma_px: 0.5,
         });
         assert_eq!(monitor.check(&view(0.0, 1.0, 50.0)), None);
         assert_eq!(monitor.frames_checked(), 0);

@@ -36,8 +36,11 @@ impl PickWorker {
     pub fn new(config: &CellConfig, settings: PickSettings) -> Result<Self, ConfigError> {
         let cell = Cell::new(config)?;
         let calibrator = PickCalibrator::new(&cell.log_header(), cell.calibration_config())
-            .map_err(|_| ConfigError {
-                field: "camera intrinsics or reference_radius_m",
+            .map_err(|_| {
+                ConfigError::new(
+                    "camera intrinsics or reference_radius_m",
+                    "are refused by the calibrator",
+                )
             })?;
         Ok(Self {
             cell,

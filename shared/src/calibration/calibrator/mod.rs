@@ -158,7 +158,12 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
                 stage: "covariance of the estimate",
             })?;
         Ok((
-            self.result(&refined.model, refined.rms_px, refined.outliers),
+            self.result(
+                &refined.model,
+                refined.rms_px,
+                refined.outliers,
+                refined.pixel_sigma_px,
+            ),
             uncertainty,
         ))
     }
@@ -197,7 +202,13 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
         }
     }
 
-    fn result(&self, model: &WorkcellModel, rms_px: f64, outliers: u32) -> CalibrationResult {
+    fn result(
+        &self,
+        model: &WorkcellModel,
+        rms_px: f64,
+        outliers: u32,
+        pixel_sigma_px: f64,
+    ) -> CalibrationResult {
         let r = model.disc_from_camera.matrix();
         let c = model.camera_centre_disc;
         let mut features_m: HVec<[f64; 3], MAX_PART_FEATURES> = HVec::new();
@@ -244,6 +255,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
                 effector_frames_used: u32::try_from(self.effectors.items().len())
                     .unwrap_or(u32::MAX),
                 outliers_rejected: outliers,
+                pixel_sigma_px,
             },
         }
     }

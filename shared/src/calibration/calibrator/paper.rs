@@ -11,6 +11,7 @@ use crate::calibration::error::CalibrationError;
 use crate::calibration::model::WorkcellModel;
 use crate::calibration::part::{intersect_two_lines, VirtualGeometry};
 use crate::calibration::records::FrameRecord;
+use crate::calibration::refine::measured_sigma;
 use crate::calibration::virtual_rotation::{disc_from_virtual, VirtualRotation};
 use crate::observation::{CalibrationResult, MAX_PART_FEATURES};
 
@@ -98,6 +99,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
             base_translation,
         };
         let rms = self.rms_reprojection(&model);
-        Ok(self.result(&model, rms, 0))
+        let sigma = measured_sigma(&self.problem(), &model, self.config.pixel_sigma);
+        Ok(self.result(&model, rms, 0, sigma))
     }
 }
