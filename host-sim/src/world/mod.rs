@@ -11,6 +11,8 @@
 //! - [`vision`]: the camera and its vision computer as the controller meets them.
 //! - [`plant`]: the PUMA 560 in `f64` with armature and friction, integrated by RK4,
 //!   with its drives' torque saturation and quantised joint encoders.
+//! - [`drive`]: the true drives drawn per cell (friction, armature, torque
+//!   constants) and the amplifier's current lag and ripple.
 //! - [`conveyor`]: the disc with speed ripple and a wrapping quadrature encoder.
 //! - [`gripper`]: closes on the part only within a stated tolerance.
 
@@ -18,6 +20,7 @@ pub mod camera;
 pub mod cell;
 pub mod conveyor;
 pub mod dimensions;
+pub mod drive;
 pub mod effector;
 pub mod generator;
 pub mod gripper;

@@ -16,7 +16,8 @@ mod settings;
 mod validate;
 
 pub use settings::{
-    CameraBump, CameraFaults, CameraSettings, CellSettings, ConveyorSettings, FaultWindow,
+    CameraBump, CameraFaults, CameraSettings, CellSettings, ConveyorSettings, DriveSettings,
+    FaultWindow,
     GripperSettings, MissedCounts, PartSettings, RobotSettings, SpeedChange, StopSettings,
     WorldFaults,
 };

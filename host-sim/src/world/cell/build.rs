@@ -20,8 +20,12 @@ use crate::scenario::recording::{DiscPlacement, FeatureHeights, Scenario};
 use crate::world::conveyor::{Conveyor, ConveyorProfile, ConveyorStop, MissedBurst, SpeedRamp};
 use crate::world::generator::random_workcell;
 use crate::world::gripper::GraspTolerance;
+use crate::world::drive::PlantDrives;
 use crate::world::plant::{JointEncoders, RobotPlant};
 use crate::world::vision::CameraSim;
+
+/// XORed into the world's seed to seed the drives' draws.
+const DRIVE_STREAM: u64 = 0xD21E_D21E_D21E_D21E;
 
 /// The recorder's scenario with this experiment's part and camera tilt: the
 /// workcell generator's ranges (Section 5's setup) do the rest.
@@ -120,11 +124,15 @@ impl World {
             None => rng.random::<u32>() & width.max(),
         };
 
+        // The drives from a stream of their own: their draws shift nothing else of the world.
+        let mut drive_rng = ChaCha8Rng::seed_from_u64(seed ^ DRIVE_STREAM);
+        let drives = PlantDrives::draw(&experiment.robot.drive, &mut drive_rng);
         let plant = RobotPlant::new(
             link_mass_scale,
             experiment.robot.payload_kg,
             Vector3::from(TOOL_PAYLOAD_COM_FLANGE_M),
             shared::planning::ready_posture(),
+            drives,
         )?;
         let gear = shared::robot::Puma560::<f64>::new();
         let mut counts_per_rad = [0.0; 6];
