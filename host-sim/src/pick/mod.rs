@@ -11,6 +11,7 @@
 
 pub mod csv;
 pub mod faults;
+pub mod invariants;
 pub mod montecarlo;
 pub mod outputs;
 pub mod plots;
