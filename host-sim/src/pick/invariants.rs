@@ -349,8 +349,8 @@ impl SafetyMonitor {
             let at = |q: &JointVector<f64>| {
                 shared::app::tool::tool_point_base(&self.model.forward_kinematics(q))
             };
-            let tool_velocity = (at(&(truth.q + truth.qd * h)) - at(&(truth.q - truth.qd * h)))
-                / (2.0 * h);
+            let tool_velocity =
+                (at(&(truth.q + truth.qd * h)) - at(&(truth.q - truth.qd * h))) / (2.0 * h);
             let relative = tool_velocity - truth.part_velocity_base_m_s;
             let closing = relative.dot(&to_part) / to_part.norm().max(1e-9);
             w.near_part_speed_mm_s = w.near_part_speed_mm_s.max(closing * 1e3);

@@ -118,8 +118,7 @@ impl PlantDrives {
         JointVector::from_fn(|j, _| {
             let motor_angle = self.gear_ratio[j] * q[j];
             let ripple = self.ripple_fraction
-                * (self.ripple_cycles_per_motor_rev * motor_angle + self.ripple_phase_rad[j])
-                    .sin();
+                * (self.ripple_cycles_per_motor_rev * motor_angle + self.ripple_phase_rad[j]).sin();
             self.torque_constant_ratio[j] * current[j] * (1.0 + ripple)
         })
     }

@@ -286,15 +286,16 @@ impl JointEncoders {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::Vector3;
     use crate::scenario::pick::DriveSettings;
     use crate::world::drive::PlantDrives;
+    use nalgebra::Vector3;
     use rand::SeedableRng;
 
     #[test]
     fn a_held_arm_stays_put_under_gravity_compensation() {
         let q0 = shared::planning::ready_posture::<f64>();
-        let mut plant = RobotPlant::new([1.0; 6], 0.0, Vector3::zeros(), q0, PlantDrives::exact()).unwrap();
+        let mut plant =
+            RobotPlant::new([1.0; 6], 0.0, Vector3::zeros(), q0, PlantDrives::exact()).unwrap();
         for _ in 0..1000 {
             let tau = plant.model().gravity_torque(&plant.state().q);
             plant.step(&tau, 1e-3).unwrap();
@@ -364,7 +365,10 @@ mod tests {
             plant.step(&command, 1e-3).unwrap();
         }
         let peak = plant.peak_torque_ratio();
-        assert!(peak > 1.0 + 0.5 * (drives.torque_constant_ratio[strong] - 1.0), "{peak}");
+        assert!(
+            peak > 1.0 + 0.5 * (drives.torque_constant_ratio[strong] - 1.0),
+            "{peak}"
+        );
     }
 
     #[test]

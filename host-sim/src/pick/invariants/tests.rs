@@ -63,7 +63,10 @@ fn a_safe_trajectory_breaks_nothing() {
 fn a_joint_past_its_range_is_caught() {
     let mut end = ready();
     end[0] = 161_f64.to_radians();
-    only(&run(&move_to(end), CAMERA, DISC_CENTRE), "past the end of its range");
+    only(
+        &run(&move_to(end), CAMERA, DISC_CENTRE),
+        "past the end of its range",
+    );
 }
 
 #[test]
@@ -93,7 +96,10 @@ fn a_gripper_low_over_the_disc_is_caught() {
 fn an_arm_into_the_camera_is_caught() {
     let p = tool(&ready());
     let camera = [p.x + 0.12, p.y, p.z + 0.05];
-    only(&run(&move_to(ready()), camera, DISC_CENTRE), "from the camera");
+    only(
+        &run(&move_to(ready()), camera, DISC_CENTRE),
+        "from the camera",
+    );
 }
 
 #[test]
@@ -167,10 +173,25 @@ fn segment_distances_match_the_geometry() {
     let z = Vector3::zeros();
     let x = Vector3::x();
     // Crossing segments, parallel segments, a point and a segment.
-    let d = segment_distance(&z, &x, &Vector3::new(0.5, -1.0, 0.3), &Vector3::new(0.5, 1.0, 0.3));
+    let d = segment_distance(
+        &z,
+        &x,
+        &Vector3::new(0.5, -1.0, 0.3),
+        &Vector3::new(0.5, 1.0, 0.3),
+    );
     assert!((d - 0.3).abs() < 1e-12);
-    let d = segment_distance(&z, &x, &Vector3::new(2.0, 0.4, 0.0), &Vector3::new(3.0, 0.4, 0.0));
+    let d = segment_distance(
+        &z,
+        &x,
+        &Vector3::new(2.0, 0.4, 0.0),
+        &Vector3::new(3.0, 0.4, 0.0),
+    );
     assert!((d - (1.0_f64 + 0.16).sqrt()).abs() < 1e-12);
-    let d = segment_distance(&z, &x, &Vector3::new(0.5, 0.2, 0.0), &Vector3::new(0.5, 0.2, 0.0));
+    let d = segment_distance(
+        &z,
+        &x,
+        &Vector3::new(0.5, 0.2, 0.0),
+        &Vector3::new(0.5, 0.2, 0.0),
+    );
     assert!((d - 0.2).abs() < 1e-12);
 }

@@ -17,9 +17,8 @@ mod validate;
 
 pub use settings::{
     CameraBump, CameraFaults, CameraSettings, CellSettings, ConveyorSettings, DriveSettings,
-    FaultWindow,
-    GripperSettings, MissedCounts, PartSettings, RobotSettings, SpeedChange, StopSettings,
-    WorldFaults,
+    FaultWindow, GripperSettings, MissedCounts, PartSettings, RobotSettings, SpeedChange,
+    StopSettings, WorldFaults,
 };
 
 /// The embedded default scenario file (`host-sim scenarios/default.toml`).

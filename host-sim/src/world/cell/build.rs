@@ -18,9 +18,9 @@ use super::{
 use crate::scenario::pick::PickExperiment;
 use crate::scenario::recording::{DiscPlacement, FeatureHeights, Scenario};
 use crate::world::conveyor::{Conveyor, ConveyorProfile, ConveyorStop, MissedBurst, SpeedRamp};
+use crate::world::drive::PlantDrives;
 use crate::world::generator::random_workcell;
 use crate::world::gripper::GraspTolerance;
-use crate::world::drive::PlantDrives;
 use crate::world::plant::{JointEncoders, RobotPlant};
 use crate::world::vision::CameraSim;
 
