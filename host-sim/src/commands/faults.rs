@@ -14,6 +14,9 @@ use crate::pick::faults::{
     fault_table, inject, run_faulty, run_trial, trial_rng, violations, write_trials_csv, FaultKind,
     FaultTrial, AT_REST_RAD_S, STRIKE_CLEARANCE_M,
 };
+use crate::pick::invariants::{
+    CAMERA_CLEARANCE_M, NEAR_PART_M, NEAR_PART_SPEED_M_S, SELF_CLEARANCE_M,
+};
 use crate::pick::montecarlo::trial_seed;
 use crate::pick::outputs::write_run_outputs;
 use crate::pick::report::{link_line, result_name};
@@ -58,11 +61,15 @@ fn replay(args: &Args, experiment: &PickExperiment, trial: usize) -> Result<()> 
     }
     let unsafe_list = violations(&run);
     println!(
-        "result: {}; worst speed {:.2} and torque {:.2} of their limits; lowest gripper over the disc {:.1} mm; {}",
+        "result: {}; worst speed {:.2} and applied torque {:.3} of their limits; lowest gripper over the disc {:.1} mm; joint range margin {:.1} deg; camera {:.0} mm, self {:.0} mm clear; {:.0} mm/s near the part; {}",
         result_name(&run.result),
         run.max_speed_ratio,
         run.max_torque_ratio,
         run.min_tool_clearance_m * 1e3,
+        run.safety.joint_limit_margin_deg,
+        run.safety.camera_clearance_mm,
+        run.safety.self_clearance_mm,
+        run.safety.near_part_speed_mm_s,
         if unsafe_list.is_empty() {
             "safe".to_owned()
         } else {
@@ -124,10 +131,14 @@ pub fn run(args: &Args) -> Result<()> {
     );
     let _ = writeln!(
         report,
-        "Unsafe or unreported ends: {} of {} (a stop must leave every joint under {AT_REST_RAD_S} rad/s; the gripper must stay {:.0} mm above the disc).",
+        "Unsafe or unreported ends: {} of {} (a stop must leave every joint under {AT_REST_RAD_S} rad/s; joints within their ranges and speeds; the gripper {:.0} mm above the disc; the arm {:.0} mm clear of the camera and {:.0} mm of itself; the gripper under {:.0} mm/s within {:.0} mm of the part; the applied torque within its limit).",
         unsafe_runs.len(),
         trials.len(),
-        STRIKE_CLEARANCE_M * 1e3
+        STRIKE_CLEARANCE_M * 1e3,
+        CAMERA_CLEARANCE_M * 1e3,
+        SELF_CLEARANCE_M * 1e3,
+        NEAR_PART_SPEED_M_S * 1e3,
+        NEAR_PART_M * 1e3
     );
     for t in unsafe_runs.iter().take(20) {
         let _ = writeln!(

@@ -2,9 +2,10 @@
 //! floor will (issue 7).
 //! Each trial draws a random workcell and one fault (or none, as the control
 //! group) with random parameters, runs the pick in process, and checks the
-//! safety invariants: joint speeds and commanded torques within their limits,
-//! the gripper never striking the disc, and every run ending in a success or
-//! in a controlled stop (arm at rest) with its cause reported.
+//! safety invariants of [`super::invariants`] (joint ranges and speeds, the
+//! disc, the camera, the arm itself, the gripper's speed near the part, the
+//! applied torque) and that every run ends in a success or in a controlled
+//! stop (arm at rest) with its cause reported.
 //!
 //! Trial k of base seed S uses world seed `S * 1_000_000 + k` and draws its
 //! fault from a generator seeded with the same number, so
@@ -18,6 +19,7 @@ use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use serde::Serialize;
 
+use super::invariants::SafetyWorst;
 use super::montecarlo::trial_seed;
 use super::record::{PickResult, PickRun};
 use super::report::result_name;
@@ -25,10 +27,7 @@ use super::runner::{run_pick_in_process, run_pick_in_process_noisy};
 use crate::link::NoiseConfig;
 use crate::scenario::pick::{CameraBump, FaultWindow, MissedCounts, PickExperiment, SpeedChange};
 
-/// The gripper strikes the disc if its grasp point comes lower than this above
-/// the disc's surface while not holding the part (parts are 40 mm or more high,
-/// and the grasp point stops at their top).
-pub const STRIKE_CLEARANCE_M: f64 = 0.02;
+pub use super::invariants::STRIKE_CLEARANCE_M;
 /// A controlled stop ends with every joint slower than this, rad/s.
 pub const AT_REST_RAD_S: f64 = 0.02;
 
@@ -216,9 +215,12 @@ pub struct FaultTrial {
     /// The cause, when the pick ended in a controlled stop.
     pub stop_cause: Option<String>,
     pub max_speed_ratio: f64,
+    /// The applied torque's (after the amplifier) worst ratio to its limit.
     pub max_torque_ratio: f64,
     pub min_tool_clearance_mm: f64,
     pub end_joint_speed_rad_s: f64,
+    /// Every invariant's worst value.
+    pub safety: SafetyWorst,
     /// Every invariant the run broke (empty when safe).
     pub violations: Vec<String>,
 }
@@ -265,26 +267,7 @@ pub fn violations(run: &PickRun) -> Vec<String> {
             ));
         }
     }
-    if run.max_speed_ratio.is_nan() || run.max_speed_ratio > 1.0 {
-        found.push(format!(
-            "joint speed {:.2} x its limit",
-            run.max_speed_ratio
-        ));
-    }
-    // The controller clamps in f32: its limit may round a few ulps above the f64 one.
-    if run.max_torque_ratio.is_nan() || run.max_torque_ratio > 1.0 + 1e-6 {
-        found.push(format!(
-            "commanded torque {:.2} x its limit",
-            run.max_torque_ratio
-        ));
-    }
-    // NaN: the gripper never came over the disc.
-    if run.min_tool_clearance_m < STRIKE_CLEARANCE_M {
-        found.push(format!(
-            "gripper {:.1} mm above the disc",
-            run.min_tool_clearance_m * 1e3
-        ));
-    }
+    found.extend(run.safety.violations());
     match run.result {
         PickResult::Success => {}
         PickResult::Fault(_) if run.end_joint_speed_rad_s < AT_REST_RAD_S => {}
@@ -339,16 +322,46 @@ pub fn run_trial(experiment: &PickExperiment, base_seed: u64, trial: usize) -> F
         max_torque_ratio: run.max_torque_ratio,
         min_tool_clearance_mm: run.min_tool_clearance_m * 1e3,
         end_joint_speed_rad_s: run.end_joint_speed_rad_s,
+        safety: run.safety,
         violations: found,
     }
 }
 
-/// The fault-against-outcome table (markdown).
+/// The worst of each invariant over `rows`: speed ratio, applied torque
+/// ratio, lowest gripper over the disc (mm), joint-range margin (deg), camera
+/// and self clearance (mm), gripper speed near the part (mm/s).
+fn worst_cells(rows: &[&FaultTrial]) -> String {
+    let max = |f: fn(&SafetyWorst) -> f64| {
+        rows.iter()
+            .map(|t| f(&t.safety))
+            .filter(|v| v.is_finite())
+            .fold(f64::NAN, f64::max)
+    };
+    let min = |f: fn(&SafetyWorst) -> f64| {
+        rows.iter()
+            .map(|t| f(&t.safety))
+            .filter(|v| v.is_finite())
+            .fold(f64::NAN, f64::min)
+    };
+    format!(
+        "{:.2} | {:.3} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0}",
+        max(|w| w.speed_ratio),
+        max(|w| w.applied_torque_ratio),
+        min(|w| w.disc_clearance_mm),
+        min(|w| w.joint_limit_margin_deg),
+        min(|w| w.camera_clearance_mm),
+        min(|w| w.self_clearance_mm),
+        max(|w| w.near_part_speed_mm_s),
+    )
+}
+
+/// The fault-against-outcome table (markdown), with every invariant's worst
+/// value per fault and over all trials.
 pub fn fault_table(trials: &[FaultTrial]) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "| fault | trials | success | controlled stop (cause: trials) | other end | unsafe | worst speed / limit | worst torque / limit | lowest gripper over disc (mm) |\n|---|---:|---:|---|---|---:|---:|---:|---:|"
+        "| fault | trials | success | controlled stop (cause: trials) | other end | unsafe | speed / limit | applied torque / limit | gripper over disc (mm) | joint range margin (deg) | camera clearance (mm) | self clearance (mm) | speed near part (mm/s) |\n|---|---:|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
     for kind in FaultKind::ALL {
         let rows: Vec<&FaultTrial> = trials.iter().filter(|t| t.kind == kind).collect();
@@ -379,43 +392,44 @@ pub fn fault_table(trials: &[FaultTrial]) -> String {
             }
         };
         let unsafe_runs = rows.iter().filter(|t| !t.violations.is_empty()).count();
-        let worst = |f: fn(&FaultTrial) -> f64| {
-            rows.iter()
-                .map(|t| f(t))
-                .filter(|v| v.is_finite())
-                .fold(f64::NAN, f64::max)
-        };
-        let lowest = rows
-            .iter()
-            .map(|t| t.min_tool_clearance_mm)
-            .filter(|v| v.is_finite())
-            .fold(f64::NAN, f64::min);
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {:.2} | {:.2} | {:.1} |",
+            "| {} | {} | {} | {} | {} | {} | {} |",
             kind.name(),
             rows.len(),
             successes,
             join(&mut causes),
             join(&mut others),
             unsafe_runs,
-            worst(|t| t.max_speed_ratio),
-            worst(|t| t.max_torque_ratio),
-            lowest
+            worst_cells(&rows)
         );
     }
+    let all: Vec<&FaultTrial> = trials.iter().collect();
+    let _ = writeln!(
+        out,
+        "| all | {} | {} | {} | {} | {} | {} |",
+        all.len(),
+        all.iter().filter(|t| t.success).count(),
+        all.iter().filter(|t| t.stop_cause.is_some()).count(),
+        all.iter()
+            .filter(|t| !t.success && t.stop_cause.is_none())
+            .count(),
+        all.iter().filter(|t| !t.violations.is_empty()).count(),
+        worst_cells(&all)
+    );
     out
 }
 
 /// Writes `trials.csv`: one line per trial.
 pub fn write_trials_csv(path: &std::path::Path, trials: &[FaultTrial]) -> Result<()> {
     let mut text = String::from(
-        "trial,seed,fault_kind,fault,result,success,stop_cause,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm,end_joint_speed_rad_s,violations\n",
+        "trial,seed,fault_kind,fault,result,success,stop_cause,max_speed_ratio,applied_torque_ratio,min_tool_clearance_mm,joint_limit_margin_deg,camera_clearance_mm,self_clearance_mm,near_part_speed_mm_s,end_joint_speed_rad_s,violations\n",
     );
     for t in trials {
+        let w = &t.safety;
         let _ = writeln!(
             text,
-            "{},{},\"{}\",\"{}\",\"{}\",{},{},{:.4},{:.4},{:.2},{:.5},\"{}\"",
+            "{},{},\"{}\",\"{}\",\"{}\",{},{},{:.4},{:.4},{:.2},{:.2},{:.1},{:.1},{:.1},{:.5},\"{}\"",
             t.trial,
             t.seed,
             t.kind.name(),
@@ -426,6 +440,10 @@ pub fn write_trials_csv(path: &std::path::Path, trials: &[FaultTrial]) -> Result
             t.max_speed_ratio,
             t.max_torque_ratio,
             t.min_tool_clearance_mm,
+            w.joint_limit_margin_deg,
+            w.camera_clearance_mm,
+            w.self_clearance_mm,
+            w.near_part_speed_mm_s,
             t.end_joint_speed_rad_s,
             t.violations.join("; ")
         );

@@ -14,6 +14,7 @@
 pub mod csv;
 pub mod faults;
 pub mod free_run;
+pub mod invariants;
 pub mod montecarlo;
 pub mod outputs;
 pub mod plots;

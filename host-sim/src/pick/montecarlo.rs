@@ -165,7 +165,7 @@ pub fn montecarlo_table(experiment: &str, summaries: &[TrialSummary]) -> String 
         ("time to a calibrated cell (s)", |s| s.calibrated_after_s),
         ("time to done (s)", |s| s.duration_s),
         ("joint speed / limit, worst", |s| s.max_speed_ratio),
-        ("commanded torque / limit, worst", |s| s.max_torque_ratio),
+        ("applied torque / limit, worst", |s| s.max_torque_ratio),
     ];
     for (name, value) in rows {
         let values: Vec<f64> = summaries.iter().map(value).collect();

@@ -5,6 +5,7 @@
 use serde::{Deserialize, Serialize};
 use shared::protocol::{CalibrationReport, FaultCause, PickPhase};
 
+use super::invariants::SafetyWorst;
 use crate::link::NoiseCounts;
 use crate::world::CellLayout;
 
@@ -118,7 +119,8 @@ pub struct PickRun {
     /// Simulated seconds from start until the controller first had a calibrated cell.
     pub calibrated_after_s: Option<f64>,
     pub duration_s: f64,
-    /// Worst ratios over the run of |joint speed| and |commanded torque| to their limits.
+    /// Worst ratios over the run of |joint speed| and of |applied torque|
+    /// (after the amplifier) to their limits.
     pub max_speed_ratio: f64,
     pub max_torque_ratio: f64,
     /// Lowest height of the grasp point above the disc surface while over the
@@ -130,6 +132,9 @@ pub struct PickRun {
     pub end_joint_speed_rad_s: f64,
     #[serde(default)]
     pub link: LinkRecord,
+    /// The worst value of every safety invariant over the run.
+    #[serde(default)]
+    pub safety: SafetyWorst,
 }
 
 impl PickRun {
@@ -157,6 +162,7 @@ impl PickRun {
             min_tool_clearance_m: f64::NAN,
             end_joint_speed_rad_s: f64::NAN,
             link: LinkRecord::default(),
+            safety: SafetyWorst::default(),
         }
     }
 }

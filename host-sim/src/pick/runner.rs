@@ -17,6 +17,7 @@ use shared::protocol::{
     PROTOCOL_VERSION,
 };
 
+use super::invariants::{PeriodTruth, SafetyMonitor};
 use super::record::{
     CalibrationRecord, GraspRecord, LinkRecord, PhaseEvent, PickResult, PickRun, TickRecord,
 };
@@ -110,6 +111,19 @@ fn truth_at(recent: &VecDeque<(u64, WorldTruth)>, time_us: u64, now: &WorldTruth
         .rev()
         .find(|(t, _)| *t == time_us)
         .map_or(*now, |(_, truth)| *truth)
+}
+
+/// What the safety invariants read of the world after a period.
+fn period_truth(world: &World) -> PeriodTruth {
+    let truth = world.truth();
+    PeriodTruth {
+        q: truth.q_rad.into(),
+        qd: truth.qd_rad_s.into(),
+        part_base_m: truth.part_base_m.into(),
+        part_velocity_base_m_s: truth.part_velocity_base_m_s.into(),
+        part_held: truth.part_held,
+        applied_torque_ratio: world.plant().peak_torque_ratio(),
+    }
 }
 
 /// Opens the session and sends the cell configuration.
@@ -212,7 +226,6 @@ pub fn run_pick_observed<L: ByteLink>(
     let mut tally = LinkRecord::default();
     open_session(link, &mut tally, &world)?;
     let model = *world.plant().model();
-    let limits = *model.joint_limits();
 
     let mut records = Vec::new();
     let mut phases: Vec<PhaseEvent> = Vec::new();
@@ -221,12 +234,13 @@ pub fn run_pick_observed<L: ByteLink>(
     let mut last_phase = None;
     let mut last_fault: Option<FaultCause> = None;
     let mut ended_at: Option<f64> = None;
-    let mut max_speed_ratio: f64 = 0.0;
-    let mut max_torque_ratio: f64 = 0.0;
-    let mut min_clearance = f64::INFINITY;
-    let disc_centre = world.layout().disc_centre_base_m;
-    let disc_top = disc_centre[2];
-    let disc_radius = world.layout().disc_radius_m;
+    let layout = world.layout();
+    let mut monitor = SafetyMonitor::new(
+        &model,
+        layout.camera_centre_base_m,
+        layout.disc_centre_base_m,
+        layout.disc_radius_m,
+    );
     // The part's last estimate (position, yaw) and the truth at its instant.
     let mut latest_estimate: Option<([f64; 3], f64, WorldTruth)> = None;
     let mut recent_truths: VecDeque<(u64, WorldTruth)> = VecDeque::with_capacity(RECENT_TRUTHS);
@@ -244,11 +258,7 @@ pub fn run_pick_observed<L: ByteLink>(
             world
                 .apply_unattended()
                 .with_context(|| format!("world step (stalled) at t = {now:.3} s"))?;
-            let state = world.truth();
-            for j in 0..6 {
-                max_speed_ratio =
-                    max_speed_ratio.max(state.qd_rad_s[j].abs() / limits.velocity_max[j]);
-            }
+            monitor.observe(&period_truth(&world));
             continue;
         }
         for frame in world.due_camera_frames() {
@@ -383,18 +393,7 @@ pub fn run_pick_observed<L: ByteLink>(
                 }),
             });
         }
-        let state = world.truth();
-        for j in 0..6 {
-            max_speed_ratio = max_speed_ratio.max(state.qd_rad_s[j].abs() / limits.velocity_max[j]);
-            let commanded = f64::from(command.joint_torque_nm[j]).abs();
-            max_torque_ratio = max_torque_ratio.max(commanded / limits.torque_max[j]);
-        }
-        let over_disc = (state.tool_base_m[0] - disc_centre[0])
-            .hypot(state.tool_base_m[1] - disc_centre[1])
-            <= disc_radius + 0.05;
-        if !state.part_held && over_disc {
-            min_clearance = min_clearance.min(state.tool_base_m[2] - disc_top);
-        }
+        monitor.observe(&period_truth(&world));
     }
 
     {
@@ -425,6 +424,7 @@ pub fn run_pick_observed<L: ByteLink>(
     tally.noise = link.inner().noise();
 
     let duration_s = world.time_s();
+    let safety = monitor.worst();
     let end_joint_speed_rad_s = world
         .truth()
         .qd_rad_s
@@ -460,13 +460,10 @@ pub fn run_pick_observed<L: ByteLink>(
         placed_error_m,
         calibrated_after_s,
         duration_s,
-        max_speed_ratio,
-        max_torque_ratio,
-        min_tool_clearance_m: if min_clearance.is_finite() {
-            min_clearance
-        } else {
-            f64::NAN
-        },
+        max_speed_ratio: safety.speed_ratio,
+        max_torque_ratio: safety.applied_torque_ratio,
+        min_tool_clearance_m: safety.disc_clearance_mm * 1e-3,
+        safety,
         end_joint_speed_rad_s,
         link: tally,
     })

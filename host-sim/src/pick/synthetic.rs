@@ -149,5 +149,6 @@ pub fn synthetic_run(experiment: &str, records: usize) -> PickRun {
         min_tool_clearance_m: 0.02,
         end_joint_speed_rad_s: 0.0,
         link: Default::default(),
+        safety: Default::default(),
     }
 }

@@ -12,6 +12,8 @@
 //! - [`render`]: the camera's grey image of each frame (for measuring the mark detector).
 //! - [`plant`]: the PUMA 560 in `f64` with armature and friction, integrated by RK4,
 //!   with its drives' torque saturation and quantised joint encoders.
+//! - [`drive`]: the true drives drawn per cell (friction, armature, torque
+//!   constants) and the amplifier's current lag and ripple.
 //! - [`conveyor`]: the disc with speed ripple and a wrapping quadrature encoder.
 //! - [`gripper`]: closes on the part only within a stated tolerance.
 
@@ -19,6 +21,7 @@ pub mod camera;
 pub mod cell;
 pub mod conveyor;
 pub mod dimensions;
+pub mod drive;
 pub mod effector;
 pub mod generator;
 pub mod gripper;

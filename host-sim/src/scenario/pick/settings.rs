@@ -1,6 +1,7 @@
 //! The settings of one pick experiment: the conveyor, the camera, the part,
 //! the robot, the gripper, the cell's layout and the faults the world injects.
 
+use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 
 /// Faults of the cell the world injects (issue 7's faults during a pick), each
@@ -208,6 +209,84 @@ pub struct RobotSettings {
     pub control_rate_hz: f64,
     /// RK4 steps of the plant per control period (>= 1).
     pub plant_substeps: u32,
+    /// The true drives' spreads from the table and the amplifier (optional:
+    /// the defaults of [`DriveSettings`]).
+    #[serde(default)]
+    pub drive: DriveSettings,
+}
+
+/// How far the true drives may be from the controller's table (see
+/// `world::drive` for the model and why these defaults) (each drawn
+/// uniformly within +-the fraction, per joint and per cell), and the
+/// amplifier's and motors' fixed behaviour. Zero everywhere is the table
+/// itself with an ideal amplifier.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriveSettings {
+    /// Friction (viscous and Coulomb) scaled by a draw in [1 - e, 1 + e].
+    pub friction_error: f64,
+    /// Motor armature inertia scaled by a draw in [1 - e, 1 + e].
+    pub armature_error: f64,
+    /// `k_true / k_nominal` drawn in [1 - e, 1 + e].
+    pub torque_constant_error: f64,
+    /// The current loop's first-order time constant, ms (0: no lag).
+    pub current_loop_time_constant_ms: f64,
+    /// Commutation torque ripple, a fraction of the torque (peak).
+    pub torque_ripple_fraction: f64,
+    /// Ripple cycles per motor revolution.
+    pub torque_ripple_cycles_per_motor_rev: f64,
+}
+
+impl Default for DriveSettings {
+    fn default() -> Self {
+        Self {
+            friction_error: 0.3,
+            armature_error: 0.3,
+            torque_constant_error: 0.05,
+            current_loop_time_constant_ms: 0.5,
+            torque_ripple_fraction: 0.03,
+            torque_ripple_cycles_per_motor_rev: 16.0,
+        }
+    }
+}
+
+impl DriveSettings {
+    /// The table's drives and an ideal amplifier.
+    pub fn exact() -> Self {
+        Self {
+            friction_error: 0.0,
+            armature_error: 0.0,
+            torque_constant_error: 0.0,
+            current_loop_time_constant_ms: 0.0,
+            torque_ripple_fraction: 0.0,
+            torque_ripple_cycles_per_motor_rev: 0.0,
+        }
+    }
+
+    /// Refuses values outside their ranges, naming the field.
+    pub fn validate(&self) -> Result<()> {
+        let fraction = |name: &str, value: f64, high: f64| -> Result<()> {
+            if !(value.is_finite() && (0.0..high).contains(&value)) {
+                bail!("robot.drive.{name} = {value} is out of range: it must be in [0, {high})");
+            }
+            Ok(())
+        };
+        fraction("friction_error", self.friction_error, 1.0)?;
+        fraction("armature_error", self.armature_error, 1.0)?;
+        fraction("torque_constant_error", self.torque_constant_error, 0.5)?;
+        fraction("torque_ripple_fraction", self.torque_ripple_fraction, 0.5)?;
+        fraction(
+            "current_loop_time_constant_ms",
+            self.current_loop_time_constant_ms,
+            100.0,
+        )?;
+        fraction(
+            "torque_ripple_cycles_per_motor_rev",
+            self.torque_ripple_cycles_per_motor_rev,
+            1000.0,
+        )?;
+        Ok(())
+    }
 }
 
 /// When closing the gripper holds the part (see `world::gripper`).

@@ -229,6 +229,7 @@ impl PickExperiment {
             r.control_rate_hz > 0.0,
             "> 0",
         )?;
+        r.drive.validate()?;
         if r.plant_substeps == 0 {
             bail!("robot.plant_substeps = 0 is out of range: it must be >= 1");
         }

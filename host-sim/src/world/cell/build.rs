@@ -21,11 +21,15 @@ use crate::scenario::pick::PickExperiment;
 use crate::scenario::recording::{DiscPlacement, FeatureHeights, Scenario};
 use crate::world::conveyor::{Conveyor, ConveyorProfile, ConveyorStop, MissedBurst, SpeedRamp};
 use crate::world::dimensions::DISC_RADIUS_M;
+use crate::world::drive::PlantDrives;
 use crate::world::generator::random_workcell;
 use crate::world::gripper::GraspTolerance;
 use crate::world::plant::{JointEncoders, RobotPlant};
 use crate::world::vision::CameraSim;
 use crate::world::workcell::Workcell;
+
+/// XORed into the world's seed to seed the drives' draws.
+const DRIVE_STREAM: u64 = 0xD21E_D21E_D21E_D21E;
 
 /// The recorder's scenario with this experiment's part and camera tilt: the
 /// workcell generator's ranges (Section 5's setup) do the rest.
@@ -138,14 +142,16 @@ impl World {
         experiment.validate().context("pick experiment")?;
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let workcell = clear_workcell(&mut rng, experiment)?;
-        Self::with_workcell(experiment, workcell, rng)
+        Self::with_workcell(experiment, workcell, rng, seed)
     }
 
-    /// The world of `experiment` around `workcell`, the rest drawn from `rng`.
+    /// The world of `experiment` around `workcell`, the rest drawn from `rng`
+    /// and the drives from their own stream of `seed`.
     pub(super) fn with_workcell(
         experiment: &PickExperiment,
         workcell: Workcell,
         mut rng: ChaCha8Rng,
+        seed: u64,
     ) -> Result<Self> {
         let error = experiment.robot.link_mass_error;
         let link_mass_scale: [f64; 6] =
@@ -164,11 +170,15 @@ impl World {
             None => rng.random::<u32>() & width.max(),
         };
 
+        // The drives from a stream of their own: their draws shift nothing else of the world.
+        let mut drive_rng = ChaCha8Rng::seed_from_u64(seed ^ DRIVE_STREAM);
+        let drives = PlantDrives::draw(&experiment.robot.drive, &mut drive_rng);
         let plant = RobotPlant::new(
             link_mass_scale,
             experiment.robot.payload_kg,
             Vector3::from(TOOL_PAYLOAD_COM_FLANGE_M),
             shared::planning::ready_posture(),
+            drives,
         )?;
         let gear = shared::robot::Puma560::<f64>::new();
         let mut counts_per_rad = [0.0; 6];

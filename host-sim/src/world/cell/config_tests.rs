@@ -24,7 +24,7 @@ fn same_user_knowledge(experiment: &PickExperiment, reference: &World, seed: u64
     let mut workcell = clear_workcell(&mut rng, experiment).unwrap();
     workcell.camera.intrinsics = reference.workcell().camera.intrinsics;
     workcell.reference_radius_m = reference.workcell().reference_radius_m;
-    World::with_workcell(experiment, workcell, rng).unwrap()
+    World::with_workcell(experiment, workcell, rng, seed).unwrap()
 }
 
 #[test]

@@ -273,7 +273,7 @@ impl World {
             omega_rad_s: self.conveyor.omega(t),
             q_rad: state.q.into(),
             qd_rad_s: state.qd.into(),
-            tau_nm: self.last_tau.into(),
+            tau_nm: self.plant.applied_torque().into(),
         }
     }
 }

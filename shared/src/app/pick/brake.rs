@@ -8,6 +8,7 @@
 //! payload, link masses off) would otherwise let the arm fall by.
 //! Nothing here depends on the camera, the conveyor or a reference.
 
+use crate::control::puma::DRIVE_TORQUE_HEADROOM;
 use crate::robot::{JointVector, Puma560};
 
 /// Damping of each joint, N m s/rad (arm joints, then the wrist's).
@@ -55,7 +56,7 @@ impl JointBrake {
             let value = at(&gravity) + spring - damping;
             // Not `clamp`: it panics on a NaN or negative limit. A limit that
             // is not a finite number allows no torque.
-            let max = at(&limits.torque_max);
+            let max = at(&limits.torque_max) * DRIVE_TORQUE_HEADROOM;
             let max = if max.is_finite() { max.abs() } else { 0.0 };
             *slot = if value.is_finite() {
                 value.max(-max).min(max)

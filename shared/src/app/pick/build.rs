@@ -25,7 +25,7 @@ use crate::control::{ControllerConfig, TaskSpaceController};
 use crate::fusion::ConveyorFilter;
 use crate::planning::TaskState;
 use crate::protocol::{CellConfig, GripperCommand};
-use crate::robot::{DriveOptions, JointVector, Puma560, SIMULATOR_COULOMB_WIDTH};
+use crate::robot::{DriveOptions, JointVector, Puma560};
 
 /// Eq 23's gains for the pick (see [`ControllerConfig::puma560`]).
 fn controller_config() -> Result<ControllerConfig<f32>, ConfigError> {
@@ -64,6 +64,14 @@ impl PickParts {
     }
 }
 
+/// The width of the controller's Coulomb friction law, rad/s: five counts of
+/// the joint observer's speed (joint 1: 1000 counts per motor turn through a
+/// 62.6 gear is 1e-4 rad a count, 0.01 rad/s over a 10-period window). A
+/// narrower law flips the full Coulomb torque on a one-count change of the
+/// measured speed, and against a plant whose friction is not the table's
+/// the hold then hunts (joint 1 at 0.04 rad/s, +-25 N m).
+const CONTROLLER_COULOMB_WIDTH_RAD_S: f64 = 0.05;
+
 /// The controller's dynamic model for Eq 23 (and for the planner's torque
 /// check): the nominal PUMA 560 with armature and smoothed friction, in `f32`.
 pub(super) fn controller_model() -> Result<Puma560<f32>, ConfigError> {
@@ -72,7 +80,7 @@ pub(super) fn controller_model() -> Result<Puma560<f32>, ConfigError> {
             armature: true,
             friction: true,
         })
-        .try_with_coulomb_smoothing(SIMULATOR_COULOMB_WIDTH)
+        .try_with_coulomb_smoothing(CONTROLLER_COULOMB_WIDTH_RAD_S)
         .map_err(|_| ConfigError::new("controller model", "cannot be built"))?
         .cast::<f32>())
 }
