@@ -7,7 +7,6 @@ use std::fs;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
-use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
 use crate::pick::faults::{
@@ -20,7 +19,7 @@ use crate::pick::invariants::{
 use crate::pick::montecarlo::trial_seed;
 use crate::pick::outputs::write_run_outputs;
 use crate::pick::report::{link_line, result_name};
-use crate::scenario::pick::{PickExperiment, PickScenarioFile};
+use crate::scenario::pick::PickExperiment;
 
 /// Options of `host-sim faults`.
 #[derive(clap::Args, Debug, Clone)]
@@ -81,11 +80,7 @@ fn replay(args: &Args, experiment: &PickExperiment, trial: usize) -> Result<()> 
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let file = match &args.scenario {
-        Some(path) => PickScenarioFile::from_path(path)?,
-        None => PickScenarioFile::embedded_default()?,
-    };
-    let experiment = file.experiment(&args.experiment)?.clone();
+    let experiment = super::load_experiment(args.scenario.as_deref(), &args.experiment)?;
     if experiment.conveyor.stop.is_some() {
         bail!(
             "experiment {} stops its conveyor; the fault campaign needs one that keeps turning (e.g. turning)",
@@ -95,17 +90,7 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(trial) = args.trial {
         return replay(args, &experiment, trial);
     }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.unwrap_or(0))
-        .build()
-        .context("thread pool")?;
-    let progress = ProgressBar::new(args.trials as u64);
-    progress.set_style(
-        ProgressStyle::with_template(
-            "{bar:40} {pos}/{len} faulty picks, {elapsed} elapsed, eta {eta}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let (pool, progress) = super::campaign_pool(args.threads, args.trials, "faulty picks")?;
     let started = std::time::Instant::now();
     let mut trials: Vec<FaultTrial> = pool.install(|| {
         (0..args.trials)

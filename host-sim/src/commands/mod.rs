@@ -24,3 +24,39 @@ pub mod montecarlo;
 pub mod record;
 pub mod run;
 pub mod vision_check;
+
+/// The experiment `name` of the scenario file at `scenario` (the embedded
+/// default when absent): what every campaign subcommand starts from.
+pub(crate) fn load_experiment(
+    scenario: Option<&std::path::Path>,
+    name: &str,
+) -> anyhow::Result<crate::scenario::pick::PickExperiment> {
+    use crate::scenario::pick::PickScenarioFile;
+    let file = match scenario {
+        Some(path) => PickScenarioFile::from_path(path)?,
+        None => PickScenarioFile::embedded_default()?,
+    };
+    Ok(file.experiment(name)?.clone())
+}
+
+/// A thread pool of `threads` (all cores when `None`) and a progress bar
+/// over `trials` items named `what`, for the campaign subcommands.
+pub(crate) fn campaign_pool(
+    threads: Option<usize>,
+    trials: usize,
+    what: &str,
+) -> anyhow::Result<(rayon::ThreadPool, indicatif::ProgressBar)> {
+    use anyhow::Context;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.unwrap_or(0))
+        .build()
+        .context("thread pool")?;
+    let progress = indicatif::ProgressBar::new(trials as u64);
+    progress.set_style(
+        indicatif::ProgressStyle::with_template(&format!(
+            "{{bar:40}} {{pos}}/{{len}} {what}, {{elapsed}} elapsed, eta {{eta}}"
+        ))
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    Ok((pool, progress))
+}

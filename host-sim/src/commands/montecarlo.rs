@@ -7,10 +7,8 @@ use std::fs;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::pick::montecarlo::{montecarlo_table, run_trials, write_trials_csv};
-use crate::scenario::pick::PickScenarioFile;
 
 /// Options of `host-sim montecarlo`.
 #[derive(clap::Args, Debug, Clone)]
@@ -36,20 +34,8 @@ pub struct Args {
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let file = match &args.scenario {
-        Some(path) => PickScenarioFile::from_path(path)?,
-        None => PickScenarioFile::embedded_default()?,
-    };
-    let experiment = file.experiment(&args.experiment)?.clone();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.unwrap_or(0))
-        .build()
-        .context("thread pool")?;
-    let progress = ProgressBar::new(args.trials as u64);
-    progress.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} picks, {elapsed} elapsed, eta {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let experiment = super::load_experiment(args.scenario.as_deref(), &args.experiment)?;
+    let (pool, progress) = super::campaign_pool(args.threads, args.trials, "picks")?;
     let started = std::time::Instant::now();
     let summaries = pool.install(|| run_trials(&experiment, args.trials, args.seed, &progress));
     progress.finish_and_clear();

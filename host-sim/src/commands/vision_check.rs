@@ -7,10 +7,8 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
-use crate::scenario::pick::PickScenarioFile;
 use crate::vision_check::pictures::write_pictures;
 use crate::vision_check::report::{markdown, summarise};
 use crate::vision_check::{run_trial, trial_seed, CheckOptions, Tally};
@@ -50,20 +48,8 @@ pub struct Args {
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let file = match &args.scenario {
-        Some(path) => PickScenarioFile::from_path(path)?,
-        None => PickScenarioFile::embedded_default()?,
-    };
-    let experiment = file.experiment(&args.experiment)?.clone();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.unwrap_or(0))
-        .build()
-        .context("thread pool")?;
-    let progress = ProgressBar::new(args.trials as u64);
-    progress.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} picks, {elapsed} elapsed, eta {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let experiment = super::load_experiment(args.scenario.as_deref(), &args.experiment)?;
+    let (pool, progress) = super::campaign_pool(args.threads, args.trials, "picks")?;
     let started = std::time::Instant::now();
     let tallies: Vec<Result<Tally>> = pool.install(|| {
         (0..args.trials)
