@@ -269,15 +269,7 @@ pub fn run_free<L: ByteLink>(
             }
             counts.plant_steps += 1;
             if let (false, Some(attempt)) = (had_grasp, world.grasp()) {
-                grasp = Some(GraspRecord {
-                    t_s: attempt.t_s,
-                    succeeded: attempt.succeeded,
-                    position_error_m: attempt.position_error_base_m,
-                    yaw_error_rad: attempt.yaw_error_rad,
-                    relative_speed_m_s: attempt.relative_speed_m_s,
-                    estimate_error_m: None,
-                    estimate_yaw_error_rad: None,
-                });
+                grasp = Some(GraspRecord::of_attempt(&attempt));
             }
         }
         let now_s = world.time_s();

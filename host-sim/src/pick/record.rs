@@ -83,6 +83,21 @@ pub struct GraspRecord {
     pub estimate_yaw_error_rad: Option<f64>,
 }
 
+impl GraspRecord {
+    /// The record of the world's grasp `attempt`, without an estimate to score.
+    pub fn of_attempt(attempt: &crate::world::GraspAttempt) -> Self {
+        Self {
+            t_s: attempt.t_s,
+            succeeded: attempt.succeeded,
+            position_error_m: attempt.position_error_base_m,
+            yaw_error_rad: attempt.yaw_error_rad,
+            relative_speed_m_s: attempt.relative_speed_m_s,
+            estimate_error_m: None,
+            estimate_yaw_error_rad: None,
+        }
+    }
+}
+
 /// What the serial link went through during the run.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct LinkRecord {

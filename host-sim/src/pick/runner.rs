@@ -380,17 +380,13 @@ pub fn run_pick_observed<L: ByteLink>(
         if let (false, Some(attempt)) = (had_grasp, world.grasp()) {
             let estimate = latest_estimate;
             grasp = Some(GraspRecord {
-                t_s: attempt.t_s,
-                succeeded: attempt.succeeded,
-                position_error_m: attempt.position_error_base_m,
-                yaw_error_rad: attempt.yaw_error_rad,
-                relative_speed_m_s: attempt.relative_speed_m_s,
                 // The last estimate against the truth at its own instant.
                 estimate_error_m: estimate.map(|(p, _, at)| vector_sub(p, at.part_base_m)),
                 estimate_yaw_error_rad: estimate.map(|(_, yaw, at)| {
                     angle_distance(yaw, at.part_yaw_rad)
                         .min(angle_distance(yaw + std::f64::consts::PI, at.part_yaw_rad))
                 }),
+                ..GraspRecord::of_attempt(&attempt)
             });
         }
         monitor.observe(&period_truth(&world));
