@@ -9,7 +9,10 @@
 //! firmware not built) the test says so and passes.
 //!
 //! MemManage (the stack guard's fault) is checked the same way. A second
-//! test checks that the RTT log has no blocking writer.
+//! test checks that the RTT log has no blocking writer. Both images are
+//! checked: the board on its own ticker and the one built for lock step
+//! with the simulated plant (`stm32f407-lock-step.elf`), which runs on real
+//! hardware too.
 //!
 //! Only what the handlers need is decoded: 16-bit PC-relative LDR (the
 //! literal loads), MOVW/MOVT, 16-bit STR and 32-bit STR.W (stores), BL
@@ -22,11 +25,30 @@ const GPIOE_BSRR: u32 = 0x4002_1018;
 /// GPIOE_MODER: PE15 made an output (after its latch is low).
 const GPIOE_MODER: u32 = 0x4002_1000;
 
-fn image_path() -> PathBuf {
+fn image_paths() -> Vec<PathBuf> {
     if let Some(path) = std::env::var_os("FIRMWARE_STM32_ELF") {
-        return PathBuf::from(path);
+        return vec![PathBuf::from(path)];
     }
-    integration_tests::qemu::target_dir().join("firmware/stm32f407.elf")
+    let dir = integration_tests::qemu::target_dir().join("firmware");
+    vec![
+        dir.join("stm32f407.elf"),
+        dir.join("stm32f407-lock-step.elf"),
+    ]
+}
+
+/// The images built, each read whole; the ones not built are named.
+fn images() -> Vec<(PathBuf, Image)> {
+    let mut images = Vec::new();
+    for path in image_paths() {
+        match std::fs::read(&path) {
+            Ok(bytes) => images.push((path, Image::parse(bytes))),
+            Err(_) => eprintln!(
+                "{}: not built (scripts/build-firmware); nothing to check",
+                path.display()
+            ),
+        }
+    }
+    images
 }
 
 fn u16_at(bytes: &[u8], at: usize) -> Option<u16> {
@@ -184,16 +206,13 @@ impl Image {
 
 #[test]
 fn the_stm32_image_drops_the_enable_first() {
-    let path = image_path();
-    let Ok(bytes) = std::fs::read(&path) else {
-        eprintln!(
-            "{}: not built (scripts/build-firmware); nothing to check",
-            path.display()
-        );
-        return;
-    };
-    let image = Image::parse(bytes);
+    for (path, image) in images() {
+        eprintln!("{}", path.display());
+        drops_the_enable_first(&image);
+    }
+}
 
+fn drops_the_enable_first(image: &Image) {
     let (name, start, size) = image.function(|n| n == "__pre_init");
     let (stores, called) = image.stores_before_any_call(start, size.max(2));
     assert!(!called, "{name} calls before RAM is initialised");
@@ -237,23 +256,17 @@ fn the_stm32_image_drops_the_enable_first() {
 /// is full, is not in the image at all.
 #[test]
 fn the_stm32_log_never_blocks() {
-    let path = image_path();
-    let Ok(bytes) = std::fs::read(&path) else {
-        eprintln!(
-            "{}: not built (scripts/build-firmware); nothing to check",
+    for (path, image) in images() {
+        let writers: Vec<_> = image
+            .symbols
+            .iter()
+            .filter(|(n, ..)| n.contains("blocking_write"))
+            .map(|(n, ..)| n.clone())
+            .collect();
+        assert!(
+            writers.iter().all(|n| n.contains("nonblocking_write")),
+            "{}: a blocking RTT writer is linked: {writers:?}",
             path.display()
         );
-        return;
-    };
-    let image = Image::parse(bytes);
-    let writers: Vec<_> = image
-        .symbols
-        .iter()
-        .filter(|(n, ..)| n.contains("blocking_write"))
-        .map(|(n, ..)| n.clone())
-        .collect();
-    assert!(
-        writers.iter().all(|n| n.contains("nonblocking_write")),
-        "a blocking RTT writer is linked: {writers:?}"
-    );
+    }
 }

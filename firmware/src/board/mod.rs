@@ -24,6 +24,11 @@ use core::fmt;
 use shared::safety::InterlockSettings;
 
 pub mod fail_safe;
+#[cfg(any(
+    all(feature = "board-qemu", not(feature = "free-run")),
+    all(feature = "board-stm32f407", feature = "lock-step")
+))]
+pub mod lock_step;
 
 #[cfg(all(feature = "board-qemu", feature = "board-stm32f407"))]
 compile_error!(
@@ -253,6 +258,45 @@ pub trait Watchdog {
     /// Arms the watchdog on the first call; restarts its countdown on every
     /// call.
     fn feed(&mut self);
+}
+
+/// The watchdog of the emulated board and of the STM32F407 in lock step:
+/// feeding it does nothing, on purpose.
+///
+/// QEMU's mps2-an386 does model the CMSDK APB watchdog (at 0x4000_8000,
+/// clocked at 25 MHz, its interrupt on the NMI; the second expiry with RESEN
+/// set resets the machine, QEMU's default `-watchdog-action`), and the
+/// STM32F407 has its IWDG, so either could be fed here. But in lock step a
+/// control period is a sample from the host, and a watchdog runs on while
+/// the CPU sleeps waiting for that sample (QEMU's virtual clock at the
+/// host's pace, with or without `-icount`). Fed once per period it would
+/// time the host's pauses, not the firmware: the host thinking, a session
+/// ending, or no host at all until the next session would reset the board;
+/// and the loop also waits there for the worker's due results (seconds on a
+/// 168 MHz M4F). Between sessions the wait is unbounded, so no timeout is
+/// both long enough never to fire then and short enough ever to catch a
+/// hang. A firmware that hangs in lock step is already seen where it
+/// matters: the simulator gets no actuator command, and its drives' own
+/// watchdog brakes the arm (5 ms, in simulated time); a board's own drives
+/// are never on in lock step ([`lock_step`]). The emulated board running
+/// free keeps it too: QEMU's clock there follows a host that may be
+/// preempted for tens of milliseconds.
+#[cfg(any(feature = "board-qemu", feature = "lock-step"))]
+pub struct NoWatchdog {
+    _owned: (),
+}
+
+#[cfg(any(feature = "board-qemu", feature = "lock-step"))]
+impl NoWatchdog {
+    /// The board's only one.
+    pub(crate) fn take() -> Self {
+        Self { _owned: () }
+    }
+}
+
+#[cfg(any(feature = "board-qemu", feature = "lock-step"))]
+impl Watchdog for NoWatchdog {
+    fn feed(&mut self) {}
 }
 
 /// The drive interlock's settings: the PUMA 560's limits, and with the

@@ -24,19 +24,19 @@ mod uart;
 
 use defmt_semihosting as _;
 
+#[cfg(not(feature = "free-run"))]
+use super::lock_step::{LockStepPlant, Unwired};
 #[cfg(feature = "free-run")]
 pub use free_run::FreeRunPlant;
 pub use sim_io::InstructionCounter;
-#[cfg(not(feature = "free-run"))]
-pub use sim_io::LockStepPlant;
 pub use uart::Uart0;
 
-use super::{fail_safe, Board, ControlSource, Watchdog as WatchdogFeed};
+use super::{fail_safe, Board, ControlSource, NoWatchdog};
 use crate::executor::{on_interrupt, Level};
 
 pub type Serial = Uart0;
 #[cfg(not(feature = "free-run"))]
-pub type Plant = LockStepPlant;
+pub type Plant = LockStepPlant<Unwired>;
 #[cfg(feature = "free-run")]
 pub type Plant = FreeRunPlant;
 pub type Cycles = InstructionCounter;
@@ -80,36 +80,14 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
     Ok(Board {
         name: BOARD_NAME,
         serial: Uart0::init(),
-        plant: <Plant>::take(),
+        #[cfg(not(feature = "free-run"))]
+        plant: LockStepPlant::holding(Unwired),
+        #[cfg(feature = "free-run")]
+        plant: FreeRunPlant::take(),
         cycles: InstructionCounter::start(),
-        watchdog: NoWatchdog { _owned: () },
+        watchdog: NoWatchdog::take(),
         control_source: CONTROL_SOURCE,
     })
-}
-
-/// The emulated board's watchdog: feeding it does nothing, on purpose.
-///
-/// QEMU's mps2-an386 does model the CMSDK APB watchdog (at 0x4000_8000,
-/// clocked at 25 MHz, its interrupt on the NMI; the second expiry with RESEN
-/// set resets the machine, QEMU's default `-watchdog-action`), so it could be
-/// fed here. But in lock step a control period is a sample from the host, and
-/// the watchdog counts QEMU's virtual clock, which runs on while the CPU
-/// sleeps waiting for that sample (at the host's pace, with or without
-/// `-icount`; with `-icount sleep=off` it would jump straight to the
-/// watchdog's deadline). Fed once per period it would time the host's pauses,
-/// not the firmware: the host thinking, a session ending, or no host at all
-/// until the next session would reset the board. Between sessions the wait is
-/// unbounded, so no timeout is both long enough never to fire then and short
-/// enough ever to catch a hang. A firmware that hangs in lock step is already
-/// seen where it matters: the
-/// simulator gets no actuator command, and its drives' own watchdog brakes
-/// the arm (5 ms, in simulated time).
-pub struct NoWatchdog {
-    _owned: (),
-}
-
-impl WatchdogFeed for NoWatchdog {
-    fn feed(&mut self) {}
 }
 
 /// Bringing up the emulated board cannot fail.

@@ -1,7 +1,7 @@
-//! The emulated board's plant and cycle counter. There are no motors or
-//! encoders: in lock step the simulator sends each period's encoder counts as
-//! a sensor-sample frame and receives the torques as an actuator-command
-//! frame, so the plant here only refuses to pretend and keeps the drives off.
+//! The emulated board's cycle counter. (There are no motors or encoders: in
+//! lock step the simulator sends each period's encoder counts as a
+//! sensor-sample frame and receives the torques as an actuator-command frame,
+//! `crate::board::lock_step`.)
 //!
 //! The cycle counter is the AN386's CMSDK TIMER0 (25 MHz) running free. Under
 //! `qemu-system-arm -icount shift=0` each instruction advances virtual time by
@@ -14,8 +14,6 @@ use shared::protocol::CostUnit;
 
 use super::mmio::Reg;
 use crate::board::CycleCounter;
-#[cfg(not(feature = "free-run"))]
-use crate::board::{validate_torques, BoardError, PlantIo, PlantReading, JOINTS};
 
 const TIMER0: Reg = Reg(0x4000_0000);
 const CTRL: Reg = TIMER0.at(0x00);
@@ -25,48 +23,6 @@ const CTRL_ENABLE: u32 = 1 << 0;
 
 /// Instructions per TIMER0 count with `-icount shift=0` (1 ns each, 25 MHz).
 const INSTRUCTIONS_PER_COUNT: u32 = 40;
-
-/// The simulator's plant, reached through the link (in lock step; running
-/// free the plant is `free_run::FreeRunPlant`).
-#[cfg(not(feature = "free-run"))]
-pub struct LockStepPlant {
-    _owned: (),
-}
-
-#[cfg(not(feature = "free-run"))]
-impl LockStepPlant {
-    pub(super) fn take() -> Self {
-        LockStepPlant { _owned: () }
-    }
-}
-
-#[cfg(not(feature = "free-run"))]
-impl PlantIo for LockStepPlant {
-    fn reading_time_us(&mut self, _now_us: u64) -> Result<u64, BoardError> {
-        Err(BoardError::NotOnThisBoard { device: "encoders" })
-    }
-
-    fn read_sample(&mut self, _camera_trigger: bool) -> Result<PlantReading, BoardError> {
-        Err(BoardError::NotOnThisBoard { device: "encoders" })
-    }
-
-    fn apply(
-        &mut self,
-        torque_nm: &[f32; JOINTS],
-        _gripper_closed: bool,
-    ) -> Result<(), BoardError> {
-        validate_torques(torque_nm)?;
-        Err(BoardError::NotOnThisBoard {
-            device: "servo amplifiers",
-        })
-    }
-
-    fn disable(&mut self) {}
-
-    /// The simulator's arm has no brake output of ours: its drives' own
-    /// watchdog brakes it.
-    fn set_brakes(&mut self, _engaged: bool) {}
-}
 
 /// TIMER0, free-running.
 #[derive(Clone, Copy)]

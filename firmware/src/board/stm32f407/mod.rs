@@ -27,7 +27,13 @@
 //! - the independent watchdog (IWDG), armed by the control loop's first
 //!   period, 32 ms nominal ([`watchdog`]); `init` logs a reset it caused.
 //!
-//! The plant runs from the board's own ticker ([`ControlSource::Ticker`]).
+//! The plant runs from the board's own ticker ([`ControlSource::Ticker`]);
+//! built with the `lock-step` feature it is instead the simulator's, in lock
+//! step over USART2 at 921,600 baud (hardware in the loop, the emulated
+//! board's mode): every device above is still brought up, and then held safe
+//! for the whole run (amplifiers disabled, brakes engaged:
+//! [`crate::board::lock_step`]); the watchdog is not armed
+//! ([`crate::board::NoWatchdog`]).
 //!
 //! Drives that fail safe:
 //! - the amplifier enable PE15 is driven low by `__pre_init`, the first code
@@ -53,6 +59,13 @@ mod quadrature;
 mod registers;
 mod servo;
 mod sign_magnitude;
+#[cfg_attr(
+    feature = "lock-step",
+    allow(
+        dead_code,
+        reason = "the lock-step build leaves the IWDG off (see NoWatchdog)"
+    )
+)]
 mod watchdog;
 
 use defmt_rtt as _;
@@ -68,10 +81,15 @@ use encoders::{qei_config, EncoderPeripherals};
 use plant::PlantDevices;
 pub use plant::Stm32Plant;
 use servo::{ServoAmplifiers, ServoPeripherals};
+#[cfg(not(feature = "lock-step"))]
 pub use watchdog::IndependentWatchdogFeed;
 
 use shared::safety::{BoardFault, JointSigns};
 
+#[cfg(feature = "lock-step")]
+use super::lock_step::LockStepPlant;
+#[cfg(feature = "lock-step")]
+use super::NoWatchdog;
 use super::{fail_safe, Board, ControlSource};
 
 /// Each joint's encoder and motor sign on this cell's wiring (joint 1 first).
@@ -187,12 +205,29 @@ bind_interrupts!(struct Irqs {
 });
 
 pub type Serial = BufferedUart<'static>;
+#[cfg(not(feature = "lock-step"))]
 pub type Plant = Stm32Plant;
+#[cfg(feature = "lock-step")]
+pub type Plant = LockStepPlant<Stm32Plant>;
 pub type Cycles = DwtCycles;
+#[cfg(not(feature = "lock-step"))]
 pub type Watchdog = IndependentWatchdogFeed;
+#[cfg(feature = "lock-step")]
+pub type Watchdog = NoWatchdog;
 
 /// Name reported in `HelloAck`.
+#[cfg(not(feature = "lock-step"))]
 pub const BOARD_NAME: &str = "stm32f407";
+/// Name reported in `HelloAck`: the host's simulated plant runs in lock step.
+#[cfg(feature = "lock-step")]
+pub const BOARD_NAME: &str = "stm32f407-lock-step";
+
+/// Where control periods come from.
+const CONTROL_SOURCE: ControlSource = if cfg!(feature = "lock-step") {
+    ControlSource::LockStep
+} else {
+    ControlSource::Ticker
+};
 
 /// The core clock ([`clock`]): a control period's budget in cycles is
 /// `CPU_HZ / rate`.
@@ -215,7 +250,15 @@ fn UART5() {
     crate::executor::on_interrupt(crate::executor::Level::Link);
 }
 
-const LINK_BAUD: u32 = 115_200;
+/// The host link's rate. In lock step every control period's sample and
+/// command cross it (about 85 bytes each way), so it runs at 921,600 baud
+/// (USART2 on the 42 MHz APB1: 0.16 % off), about 1,000 periods a second
+/// at best; on its own ticker 115,200 carries the frames and telemetry.
+const LINK_BAUD: u32 = if cfg!(feature = "lock-step") {
+    921_600
+} else {
+    115_200
+};
 const UART_BUFFER_LEN: usize = 512;
 
 /// Errors bringing the board up.
@@ -442,13 +485,17 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
         brake_release: Output::new(p.PD10, Level::Low, Speed::Low),
     });
 
+    #[cfg(feature = "lock-step")]
+    let (plant, watchdog) = (LockStepPlant::holding(plant), NoWatchdog::take());
+    #[cfg(not(feature = "lock-step"))]
+    let watchdog = IndependentWatchdogFeed::new(p.IWDG);
     Ok(Board {
         name: BOARD_NAME,
         serial,
         plant,
         cycles,
-        watchdog: IndependentWatchdogFeed::new(p.IWDG),
-        control_source: ControlSource::Ticker,
+        watchdog,
+        control_source: CONTROL_SOURCE,
     })
 }
 
