@@ -7,7 +7,7 @@
 
 use std::time::{Duration, Instant};
 
-use host_sim::link::FramedLink;
+use host_sim::link::{board_timing, FramedLink};
 use host_sim::pick::record::{PickResult, PickRun};
 use host_sim::pick::runner::{run_pick, run_pick_in_process};
 use host_sim::scenario::pick::PickScenarioFile;
@@ -179,6 +179,32 @@ fn the_emulated_firmware_picks_the_part_as_the_in_process_controller_does() {
         report.stack_size_bytes
     );
     assert!(report.stack_used_bytes <= STACK_LIMIT_BYTES, "{report:?}");
+    // The jobs' costs that `host-sim run --link in-process:stm32f407` delays
+    // results by (host_sim::link::board_timing): within 10 % of this run's,
+    // so that model is re-measured when the jobs change.
+    for (kind, measured, model) in [
+        (
+            "preliminary estimate",
+            report.job_worst.estimate_preliminary,
+            board_timing::MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS,
+        ),
+        (
+            "final estimate",
+            report.job_worst.estimate_final,
+            board_timing::MEASURED_ESTIMATE_FINAL_INSTRUCTIONS,
+        ),
+        (
+            "plan",
+            report.job_worst.plan,
+            board_timing::MEASURED_PLAN_INSTRUCTIONS,
+        ),
+    ] {
+        let ratio = f64::from(measured) / model as f64;
+        assert!(
+            (0.9..=1.1).contains(&ratio),
+            "{kind}: {measured} instructions, the board-timing model says {model}: update it"
+        );
+    }
     // Lock step: the loop waits for a due result instead of missing a deadline.
     assert_eq!(report.late_results, 0, "{report:?}");
     assert_eq!(report.messages_dropped, 0, "{report:?}");
@@ -186,13 +212,16 @@ fn the_emulated_firmware_picks_the_part_as_the_in_process_controller_does() {
     let figures = format!(
         "{{\"experiment\":\"{EXPERIMENT}\",\"seed\":{SEED},\"wall_s\":{:.1},\"control_ticks\":{},\
          \"control_worst_instructions\":{},\"control_mean_instructions\":{},\"jobs_run\":{},\
-         \"job_worst_instructions\":{},\"stack_used_bytes\":{},\"deadline_misses_at_168mhz\":{}}}\n",
+         \"job_worst_instructions\":{},\"estimate_preliminary_instructions\":{},\"estimate_final_instructions\":{},\"plan_instructions\":{},\"stack_used_bytes\":{},\"deadline_misses_at_168mhz\":{}}}\n",
         wall.as_secs_f64(),
         report.control_ticks,
         report.control_worst,
         report.control_mean,
         report.jobs_run,
-        report.job_worst,
+        report.job_worst.worst(),
+        report.job_worst.estimate_preliminary,
+        report.job_worst.estimate_final,
+        report.job_worst.plan,
         report.stack_used_bytes,
         report.deadline_misses
     );

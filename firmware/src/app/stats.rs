@@ -7,7 +7,7 @@ use core::cell::RefCell;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use critical_section::Mutex;
-use shared::protocol::{CostUnit, PickPhase, RuntimeReport};
+use shared::protocol::{CostUnit, JobCosts, PickPhase, RuntimeReport};
 
 /// Costs since the cell was configured.
 struct Costs {
@@ -15,7 +15,7 @@ struct Costs {
     control_worst: u32,
     control_sum: u64,
     jobs_run: u32,
-    job_worst: u32,
+    job_worst: JobCosts,
     deadline_misses: u32,
     late_results: u32,
     worst_tick: u64,
@@ -27,7 +27,7 @@ static COSTS: Mutex<RefCell<Costs>> = Mutex::new(RefCell::new(Costs {
     control_worst: 0,
     control_sum: 0,
     jobs_run: 0,
-    job_worst: 0,
+    job_worst: JobCosts::ZERO,
     deadline_misses: 0,
     late_results: 0,
     worst_tick: 0,
@@ -78,12 +78,28 @@ pub fn record_control(cost: u32, missed: bool, late_results: u32, phase: PickPha
     });
 }
 
-/// One background job cost `cost` units.
-pub fn record_job(cost: u32) {
+/// The kinds of background job, each with its own worst cost.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
+pub enum JobKind {
+    /// The estimate after the search.
+    EstimatePreliminary,
+    /// The estimate after the calibration poses.
+    EstimateFinal,
+    /// An intercept plan.
+    Plan,
+}
+
+/// One background job of `kind` cost `cost` units.
+pub fn record_job(kind: JobKind, cost: u32) {
     critical_section::with(|cs| {
         let mut costs = COSTS.borrow_ref_mut(cs);
         costs.jobs_run = costs.jobs_run.saturating_add(1);
-        costs.job_worst = costs.job_worst.max(cost);
+        let worst = match kind {
+            JobKind::EstimatePreliminary => &mut costs.job_worst.estimate_preliminary,
+            JobKind::EstimateFinal => &mut costs.job_worst.estimate_final,
+            JobKind::Plan => &mut costs.job_worst.plan,
+        };
+        *worst = (*worst).max(cost);
     });
 }
 
@@ -104,7 +120,7 @@ pub fn reset_costs() {
         costs.worst_tick = 0;
         costs.worst_phase = PickPhase::Idle;
         costs.jobs_run = 0;
-        costs.job_worst = 0;
+        costs.job_worst = JobCosts::ZERO;
         costs.late_results = 0;
     });
 }

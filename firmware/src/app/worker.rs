@@ -8,7 +8,7 @@ use core::pin::Pin;
 use core::task::{Context, Poll};
 
 use embassy_sync::channel::TrySendError;
-use shared::app::pick::handoff::{VisionNews, WorkItem};
+use shared::app::pick::handoff::{JobRequest, VisionNews, WorkItem};
 use shared::app::pick::settings::PickSettings;
 use shared::app::pick::worker::PickWorker;
 
@@ -98,13 +98,20 @@ fn poll_work(
     }
     let started = cycles.now();
     *news = pick_worker.process(&item);
-    if matches!(item, WorkItem::Job(_)) {
+    if let WorkItem::Job(ticket) = &item {
         let cost = cycles
             .now()
             .wrapping_sub(started)
             .saturating_mul(cycles.scale());
-        stats::record_job(cost);
-        defmt::info!("worker: job done, {} {}", cost, cycles.unit());
+        let kind = match ticket.request {
+            JobRequest::Estimate {
+                preliminary: true, ..
+            } => stats::JobKind::EstimatePreliminary,
+            JobRequest::Estimate { .. } => stats::JobKind::EstimateFinal,
+            JobRequest::Plan { .. } => stats::JobKind::Plan,
+        };
+        stats::record_job(kind, cost);
+        defmt::info!("worker: {} done, {} {}", kind, cost, cycles.unit());
     }
     Poll::Ready(None)
 }

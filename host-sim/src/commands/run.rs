@@ -8,7 +8,8 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 
 use crate::link::{
-    ByteLink, FramedLink, InProcessLink, NoiseConfig, NoisyLink, SerialPortLink, TcpLink,
+    BoardTiming, ByteLink, FramedLink, InProcessLink, NoiseConfig, NoisyLink, SerialPortLink,
+    TcpLink,
 };
 use crate::pick::outputs::write_run_outputs;
 use crate::pick::record::PickRun;
@@ -34,8 +35,10 @@ pub struct Args {
     /// Skip the plots and CSV files.
     #[arg(long)]
     pub no_plots: bool,
-    /// The controller: `in-process` (default), `tcp:HOST:PORT` (the emulated
-    /// firmware's UART) or `serial:PATH[@BAUD]` (a board).
+    /// The controller: `in-process` (default), `in-process:stm32f407` (the
+    /// same with each job's result as late as a 168 MHz Cortex-M4F would
+    /// deliver it), `tcp:HOST:PORT` (the emulated firmware's UART) or
+    /// `serial:PATH[@BAUD]` (a board built for lock step).
     #[arg(long, default_value = "in-process")]
     pub link: String,
     /// Damage this fraction of the link's bytes, both ways (flip a bit, drop
@@ -100,6 +103,9 @@ fn run_on_link(experiment: &PickExperiment, seed: u64, args: &Args) -> Result<Pi
     let link = args.link.as_str();
     if link == "in-process" {
         go(experiment, seed, InProcessLink::new(), args)
+    } else if link == "in-process:stm32f407" {
+        let board = InProcessLink::with_board_timing(BoardTiming::stm32f407());
+        go(experiment, seed, board, args)
     } else if let Some(addr) = link.strip_prefix("tcp:") {
         go(
             experiment,
@@ -118,7 +124,9 @@ fn run_on_link(experiment: &PickExperiment, seed: u64, args: &Args) -> Result<Pi
         };
         go(experiment, seed, SerialPortLink::open(path, baud)?, args)
     } else {
-        bail!("unknown --link {link}: use in-process, tcp:HOST:PORT or serial:PATH[@BAUD]")
+        bail!(
+            "unknown --link {link}: use in-process, in-process:stm32f407, tcp:HOST:PORT or serial:PATH[@BAUD]"
+        )
     }
 }
 

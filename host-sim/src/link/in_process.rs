@@ -4,13 +4,21 @@
 //! are queued for `recv`. Background work (self-calibration, planning) runs
 //! right after each message; the pick applies its results after a fixed
 //! simulated delay, so a run does not depend on this computer's speed.
+//!
+//! With [`InProcessLink::with_board_timing`] the worker is instead a board's:
+//! its items are queued as the firmware's worker task takes them (eight at
+//! most), and each job's result comes when a 168 MHz Cortex-M4F would have
+//! finished it ([`super::board_timing`]), on the plant's clock: late, as on
+//! the STM32F407 running on its own ticker.
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
+use shared::app::pick::handoff::{VisionNews, WorkItem};
 use shared::app::{ControllerApp, MAX_REPLIES};
-use shared::protocol::{encode_frame, FrameDecoder, MAX_FRAME_LEN};
+use shared::protocol::{encode_frame, FrameDecoder, Message, MAX_FRAME_LEN};
 
+use super::board_timing::BoardTiming;
 use super::{ByteLink, LinkError};
 
 /// The control rate the in-process controller reports (the firmware's default;
@@ -24,6 +32,19 @@ pub struct InProcessLink {
     /// Control ticks are wall-clock milliseconds since the link was made,
     /// standing in for the firmware's 1 kHz tick task.
     started: Instant,
+    /// The board's worker, when its jobs take a board's time.
+    board: Option<BoardWorker>,
+}
+
+/// A board's worker on the plant's clock: busy with one item at a time.
+struct BoardWorker {
+    timing: BoardTiming,
+    /// The job being computed: its news and when it is done, microseconds.
+    running: Option<(u64, Option<VisionNews>)>,
+    /// When the worker was last done.
+    free_at_us: u64,
+    /// The newest sample's time: the plant's clock here.
+    now_us: u64,
 }
 
 impl InProcessLink {
@@ -33,6 +54,70 @@ impl InProcessLink {
             app: ControllerApp::new("in-process", IN_PROCESS_CONTROL_RATE_HZ),
             replies: VecDeque::new(),
             started: Instant::now(),
+            board: None,
+        }
+    }
+
+    /// The controller with its jobs' results delayed by what they cost on a
+    /// board (`timing`), on the plant's clock.
+    pub fn with_board_timing(timing: BoardTiming) -> Self {
+        InProcessLink {
+            app: ControllerApp::with_queued_work(
+                "in-process-board-timing",
+                IN_PROCESS_CONTROL_RATE_HZ,
+            ),
+            board: Some(BoardWorker {
+                timing,
+                running: None,
+                free_at_us: 0,
+                now_us: 0,
+            }),
+            ..Self::new()
+        }
+    }
+
+    /// Runs the board's worker up to `now_us`: results whose job is done by
+    /// then are delivered, and the worker takes its next items, each
+    /// computed when it starts and delivered when the board would be done
+    /// with it. An observation costs nothing here (its share of the board's
+    /// time is small beside a job's and is not modelled).
+    fn advance_worker(&mut self, now_us: u64) {
+        let Some(board) = self.board.as_mut() else {
+            return;
+        };
+        board.now_us = board.now_us.max(now_us);
+        loop {
+            if let Some((done_us, news)) = board.running.take() {
+                if done_us > board.now_us {
+                    board.running = Some((done_us, news));
+                    return;
+                }
+                if let Some(news) = news {
+                    self.app.deliver(&news);
+                }
+                board.free_at_us = done_us;
+            }
+            let Some(item) = self.app.next_work() else {
+                return;
+            };
+            // Items are looked at once a control period: one that waited
+            // for a busy worker starts within a period of it being free.
+            let start_us = board.free_at_us.max(board.now_us);
+            let news = self.app.process_work(&item);
+            let cost_us = match &item {
+                WorkItem::Job(ticket) => board.timing.job_us(&ticket.request),
+                WorkItem::Observation(_) => 0,
+            };
+            board.running = Some((start_us.saturating_add(cost_us), news));
+        }
+    }
+
+    /// The answer to a runtime-report request, with what this process knows
+    /// of the pick: its late results and the worker items dropped.
+    fn patch_report(&self, reply: &mut Message) {
+        if let (Message::RuntimeReport(report), Some(pick)) = (reply, self.app.pick()) {
+            report.late_results = pick.counters().late_results;
+            report.handoffs_dropped = self.app.work_dropped();
         }
     }
 }
@@ -59,14 +144,24 @@ impl ByteLink for InProcessLink {
                             .link_mut()
                             .set_control_ticks(u64::try_from(ticks).unwrap_or(u64::MAX));
                     }
+                    if let Message::SensorSample(sample) = &message {
+                        self.advance_worker(sample.time_us);
+                    }
                     self.app.on_message(&message, &mut replies);
-                    self.app.run_background();
+                    match &self.board {
+                        Some(board) => {
+                            let now_us = board.now_us;
+                            self.advance_worker(now_us);
+                        }
+                        None => self.app.run_background(),
+                    }
                 }
                 Err(e) => {
                     let _ = replies.push(self.app.on_decode_error(&e));
                 }
             }
-            for reply in &replies {
+            for reply in replies.iter_mut() {
+                self.patch_report(reply);
                 let len = encode_frame(reply, &mut frame)
                     .map_err(|e| LinkError::Encode(e.to_string()))?;
                 self.replies.extend(frame.iter().take(len));
@@ -90,6 +185,12 @@ impl ByteLink for InProcessLink {
     }
 
     fn describe(&self) -> String {
-        "in-process controller (shared::app::ControllerApp)".to_string()
+        match &self.board {
+            Some(board) => format!(
+                "in-process controller (shared::app::ControllerApp), jobs timed as on {}",
+                board.timing.describe()
+            ),
+            None => "in-process controller (shared::app::ControllerApp)".to_string(),
+        }
     }
 }

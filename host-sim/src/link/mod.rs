@@ -9,6 +9,7 @@
 //!
 //! The integration tests (`tests/tests/emulator_link.rs`) run the same checks.
 
+pub mod board_timing;
 pub mod check;
 mod framed;
 mod in_process;
@@ -19,6 +20,7 @@ mod tcp;
 use std::fmt;
 use std::time::Duration;
 
+pub use board_timing::BoardTiming;
 pub use framed::FramedLink;
 pub use in_process::InProcessLink;
 pub use noisy::{DirectionCounts, NoiseConfig, NoiseCounts, NoisyLink, TelemetryCheck};

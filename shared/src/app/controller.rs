@@ -18,6 +18,12 @@ pub const MAX_REPLIES: usize = MAX_TICK_MESSAGES + 1;
 /// Jobs requested and not yet run (one at a time is the pick's rule).
 const PENDING_JOBS: usize = 2;
 
+/// The worker's queue when the caller runs the worker itself
+/// ([`ControllerApp::with_queued_work`]): as many items as the firmware's
+/// `WORK` channel holds, so that a slow job costs the same frames here as on
+/// the board.
+pub const WORK_SLOTS: usize = 8;
+
 /// The controller application in one piece, for the in-process link: the
 /// pick's three parts called in the order the firmware's tasks call them.
 #[derive(Debug, Clone)]
@@ -32,6 +38,12 @@ pub struct ControllerApp {
     /// makes).
     motion: EncoderMotion,
     joint_speed_rad_s: Option<[f32; crate::safety::JOINTS]>,
+    /// Observations and jobs for a worker the caller runs (a board's
+    /// low-priority task stands in here), or `None`: the worker runs in
+    /// [`ControllerApp::on_message`] and [`ControllerApp::run_background`].
+    work: Option<Deque<WorkItem, WORK_SLOTS>>,
+    /// Items refused because `work` was full (the firmware's handoffs dropped).
+    work_dropped: u32,
 }
 
 impl ControllerApp {
@@ -46,7 +58,46 @@ impl ControllerApp {
             reported_estimate: 0,
             motion: EncoderMotion::new(&[0.0; crate::safety::JOINTS]),
             joint_speed_rad_s: None,
+            work: None,
+            work_dropped: 0,
         }
+    }
+
+    /// The same application with its worker's items queued for the caller
+    /// ([`ControllerApp::next_work`], [`ControllerApp::process_work`],
+    /// [`ControllerApp::deliver`]), as the firmware's worker task takes
+    /// them: a host that delays each job's result by what it costs on a
+    /// board runs the pick as that board would.
+    pub fn with_queued_work(board_name: &str, control_rate_hz: u32) -> Self {
+        Self {
+            work: Some(Deque::new()),
+            ..Self::new(board_name, control_rate_hz)
+        }
+    }
+
+    /// The next item for the worker, oldest first (queued work only).
+    pub fn next_work(&mut self) -> Option<WorkItem> {
+        self.work.as_mut().and_then(Deque::pop_front)
+    }
+
+    /// Runs `item` on the worker and returns its news without delivering it
+    /// (the caller delivers it when the board would have finished).
+    pub fn process_work(&mut self, item: &WorkItem) -> Option<VisionNews> {
+        self.pick
+            .as_mut()
+            .and_then(|parts| parts.worker.process(item))
+    }
+
+    /// Hands the worker's `news` to the control loop.
+    pub fn deliver(&mut self, news: &VisionNews) {
+        if let Some(parts) = self.pick.as_mut() {
+            parts.control.on_news(news);
+        }
+    }
+
+    /// Worker items refused because the queue was full (queued work only).
+    pub fn work_dropped(&self) -> u32 {
+        self.work_dropped
     }
 
     /// Whether a new configuration may replace the pick now
@@ -107,10 +158,16 @@ impl ControllerApp {
                         match event {
                             ControlEvent::Trigger(record) => parts.pairer.on_trigger(&record),
                             ControlEvent::Job(ticket) => {
-                                if self.jobs.is_full() {
-                                    let _ = self.jobs.pop_front();
+                                if let Some(WorkItem::Job(ticket)) = queue_into(
+                                    &mut self.work,
+                                    &mut self.work_dropped,
+                                    WorkItem::Job(ticket),
+                                ) {
+                                    if self.jobs.is_full() {
+                                        let _ = self.jobs.pop_front();
+                                    }
+                                    let _ = self.jobs.push_back(ticket);
                                 }
-                                let _ = self.jobs.push_back(ticket);
                             }
                         }
                     }
@@ -127,8 +184,12 @@ impl ControllerApp {
                             parts.control.on_news(&paired.news);
                             if let Some(observation) = paired.observation {
                                 let item = WorkItem::Observation(observation);
-                                if let Some(news) = parts.worker.process(&item) {
-                                    parts.control.on_news(&news);
+                                if let Some(item) =
+                                    queue_into(&mut self.work, &mut self.work_dropped, item)
+                                {
+                                    if let Some(news) = parts.worker.process(&item) {
+                                        parts.control.on_news(&news);
+                                    }
                                 }
                             }
                         }
@@ -152,6 +213,9 @@ impl ControllerApp {
                     Ok(parts) => {
                         self.pick = Some(parts);
                         self.jobs.clear();
+                        if let Some(work) = self.work.as_mut() {
+                            work.clear();
+                        }
                         self.reported_estimate = 0;
                         self.motion = EncoderMotion::new(&config.joint_counts_per_rad);
                         self.joint_speed_rad_s = None;
@@ -190,6 +254,23 @@ impl ControllerApp {
             }
         }
     }
+}
+
+/// Queues `item` into `work` for the caller's worker (counting it in
+/// `dropped` when full, as the firmware's `WORK` channel does), or, with no
+/// queue, gives it back to be run now.
+fn queue_into(
+    work: &mut Option<Deque<WorkItem, WORK_SLOTS>>,
+    dropped: &mut u32,
+    item: WorkItem,
+) -> Option<WorkItem> {
+    let Some(work) = work.as_mut() else {
+        return Some(item);
+    };
+    if work.push_back(item).is_err() {
+        *dropped = dropped.saturating_add(1);
+    }
+    None
 }
 
 /// A cell configuration refused: which field.

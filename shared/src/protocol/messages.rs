@@ -300,10 +300,12 @@ pub struct RuntimeReport {
     pub control_worst: u32,
     /// The mean control period's cost (see `control_worst`).
     pub control_mean: u32,
-    /// Background jobs run (estimates and plans) and the worst one's cost.
+    /// Background jobs run (estimates and plans).
     pub jobs_run: u32,
-    /// The worst job's cost (see `jobs_run`).
-    pub job_worst: u32,
+    /// The worst job of each kind, in `unit`: what a real board's jobs take,
+    /// which a host uses to model their late results
+    /// (`host-sim run --job-timing m4f`).
+    pub job_worst: JobCosts,
     /// Deepest stack use seen (stack painting) and the stack's size, bytes.
     pub stack_used_bytes: u32,
     /// The stack's size, bytes (see `stack_used_bytes`).
@@ -331,6 +333,33 @@ pub struct RuntimeReport {
     pub reconfigure_cost: u32,
 }
 
+/// The worst cost of each kind of background job (see [`RuntimeReport`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct JobCosts {
+    /// A preliminary estimate (after the search; it also chooses the poses).
+    pub estimate_preliminary: u32,
+    /// A final estimate (after the calibration poses).
+    pub estimate_final: u32,
+    /// An intercept plan.
+    pub plan: u32,
+}
+
+impl JobCosts {
+    /// Nothing measured.
+    pub const ZERO: Self = Self {
+        estimate_preliminary: 0,
+        estimate_final: 0,
+        plan: 0,
+    };
+
+    /// The worst of the three.
+    pub fn worst(&self) -> u32 {
+        self.estimate_preliminary
+            .max(self.estimate_final)
+            .max(self.plan)
+    }
+}
+
 impl RuntimeReport {
     /// A report of a controller that measures nothing.
     pub const fn not_measured(control_ticks: u64) -> Self {
@@ -341,7 +370,7 @@ impl RuntimeReport {
             control_worst: 0,
             control_mean: 0,
             jobs_run: 0,
-            job_worst: 0,
+            job_worst: JobCosts::ZERO,
             stack_used_bytes: 0,
             stack_size_bytes: 0,
             deadline_misses: 0,

@@ -175,7 +175,11 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 control_worst: v[0],
                 control_mean: v[1],
                 jobs_run: v[2],
-                job_worst: v[3],
+                job_worst: JobCosts {
+                    estimate_preliminary: v[3],
+                    estimate_final: v[3] / 3,
+                    plan: v[3] ^ 7,
+                },
                 stack_used_bytes: v[4],
                 stack_size_bytes: v[5],
                 deadline_misses: v[6],
@@ -397,7 +401,7 @@ fn the_documented_frame_limits_hold() {
 /// only, and the version says so.
 #[test]
 fn v2_appends_the_trigger_event_and_keeps_v1_encodings() {
-    assert_eq!(PROTOCOL_VERSION, 3);
+    assert_eq!(PROTOCOL_VERSION, 4);
     // postcard writes the variant index first: RuntimeReport was the last of
     // v1 (index 13), TriggerEvent is 14.
     let event = wire_bytes(&Message::TriggerEvent(TriggerEvent {

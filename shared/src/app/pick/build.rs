@@ -157,6 +157,7 @@ impl PickController {
             poses: Vec::new(),
             jobs: JobSlot::new(session),
             next_plan_attempt_s: 0.0,
+            plan_lead_s: settings.plan_budget_s,
             calibration_rounds: 0,
             estimate_serial: 0,
             qdd_commanded: JointVector::zeros(),

@@ -1,7 +1,10 @@
 //! The one background job the pick may have in flight (an estimate or an
 //! intercept plan). Its outcome is applied a fixed delay after the request,
 //! not when the worker is done, so the run does not depend on how fast the
-//! worker is, as long as it is done by then.
+//! worker is, as long as it is done by then. A worker slower than that (a
+//! real board's: the jobs take what the M4F takes) delivers late: the
+//! outcome is applied when it comes, and the pick sees how late
+//! ([`JobSlot::ready_late_by_s`]) to judge whether it still holds.
 
 use super::handoff::{JobOutcome, JobRequest, JobResult, JobTicket};
 
@@ -11,6 +14,8 @@ struct Job {
     job_id: u32,
     outcome: Option<JobOutcome>,
     apply_at_s: f32,
+    /// When the outcome came (controller time), once it has.
+    came_at_s: f32,
 }
 
 /// The job in flight, if any, and the numbering of jobs.
@@ -41,6 +46,7 @@ impl JobSlot {
             job_id,
             outcome: None,
             apply_at_s,
+            came_at_s: apply_at_s,
         });
         JobTicket {
             session: self.session,
@@ -63,6 +69,7 @@ impl JobSlot {
         }
         let late = now_s > job.apply_at_s;
         job.outcome = Some(result.outcome.clone());
+        job.came_at_s = now_s;
         late
     }
 
@@ -77,6 +84,16 @@ impl JobSlot {
         } else {
             None
         }
+    }
+
+    /// How long after its due time the outcome that [`JobSlot::take_ready`]
+    /// would now return came (0 for one that came in time); `None` when none
+    /// is ready.
+    pub(super) fn ready_late_by_s(&self, now_s: f32) -> Option<f32> {
+        self.job
+            .as_ref()
+            .filter(|job| job.outcome.is_some() && now_s >= job.apply_at_s)
+            .map(|job| (job.came_at_s - job.apply_at_s).max(0.0))
     }
 
     /// True when a job's outcome is due at `now_s` and has not come.
@@ -134,6 +151,8 @@ mod tests {
         assert!(slot.awaits(2.0));
         assert!(!slot.accept(&result(7, 1), 1.5));
         assert!(!slot.awaits(2.0));
+        assert_eq!(slot.ready_late_by_s(1.9), None);
+        assert_eq!(slot.ready_late_by_s(2.0), Some(0.0));
         assert_eq!(slot.take_ready(1.9), None);
         assert!(slot.take_ready(2.0).is_some());
         assert!(slot.is_idle());
@@ -147,7 +166,8 @@ mod tests {
         assert!(!slot.accept(&result(7, 2), 1.0));
         assert_eq!(slot.take_ready(3.0), None);
         assert!(slot.accept(&result(7, 1), 3.0));
-        assert!(slot.take_ready(3.0).is_some());
+        assert_eq!(slot.ready_late_by_s(3.5), Some(1.0));
+        assert!(slot.take_ready(3.5).is_some());
         let second = slot.open(request(), 5.0);
         assert_eq!(second.job_id, 2);
         slot.cancel();

@@ -100,6 +100,12 @@ pub const PICK_PIXELS_PER_FRAME: usize = 5;
 /// and a job request at most; room for one tick not drained).
 pub const MAX_CONTROL_EVENTS: usize = 4;
 
+/// An intercept plan that comes later than this after its due start is
+/// dropped: the part has moved on by `omega r` times the lateness (5 mm at
+/// 0.5 rad/s and 1 m of radius), more than the track step should have to
+/// take up.
+const LATE_PLAN_S: f32 = 0.01;
+
 /// Messages one control tick may emit besides its actuator command.
 pub const MAX_TICK_MESSAGES: usize = 3;
 
@@ -115,6 +121,9 @@ pub struct PickCounters {
     pub frames_refused: u32,
     /// Job results that came after their due time (the worker was too slow).
     pub late_results: u32,
+    /// Intercept plans that came too late to start on time, dropped and
+    /// planned again with a longer lead.
+    pub late_plans_dropped: u32,
     /// Control periods whose torques Eq 23 had to clip to the joints' ratings.
     pub saturated_ticks: u32,
     /// Frames in which the camera saw the gripper's marks.
@@ -210,6 +219,9 @@ pub struct PickController {
     calibration_accepted: bool,
     /// The earliest time of the next intercept plan's request.
     next_plan_attempt_s: f32,
+    /// How long after its request an intercept plan starts: the settings'
+    /// budget, lengthened when a plan came too late to start on time.
+    plan_lead_s: f32,
     /// Intercepts planned for the part so far.
     intercept_attempts: u8,
 
@@ -537,16 +549,24 @@ impl PickController {
             }
             Some(JobOutcome::Estimate(Err(cause))) => self.raise(cause),
             Some(JobOutcome::Plan(_)) => self.raise(FaultCause::Timeout),
-            None if in_step > 4.0 * self.settings.estimate_budget_s + 1.0 => {
-                self.raise(FaultCause::Timeout)
-            }
+            None if in_step > self.settings.estimate_timeout_s => self.raise(FaultCause::Timeout),
             None => {}
         }
     }
 
     /// Waits for a steady conveyor, asks for an intercept, and starts it.
     fn locate(&mut self, in_step: f32) {
+        let late_by_s = self.jobs.ready_late_by_s(self.now_s);
         match self.jobs.take_ready(self.now_s) {
+            Some(JobOutcome::Plan(Ok(_))) if late_by_s.is_some_and(|s| s > LATE_PLAN_S) => {
+                // Planned for a start that has passed: the part has moved on
+                // by the lateness. Plan again, with the lead this one needed.
+                let needed_s = self.plan_lead_s + late_by_s.unwrap_or(0.0);
+                self.plan_lead_s = (1.5 * needed_s).min(self.settings.max_plan_lead_s);
+                self.counters.late_plans_dropped =
+                    self.counters.late_plans_dropped.saturating_add(1);
+                self.next_plan_attempt_s = self.now_s;
+            }
             Some(JobOutcome::Plan(Ok((plan, prediction)))) => {
                 self.intercept_attempts = self.intercept_attempts.saturating_add(1);
                 self.motion = Motion::Intercept {
@@ -585,11 +605,11 @@ impl PickController {
                 conveyor: ConveyorSnapshot {
                     theta: state.theta_wrapped,
                     omega: state.omega,
-                    lead_s: self.settings.plan_budget_s,
+                    lead_s: self.plan_lead_s,
                 },
                 estimate,
             };
-            self.request(request, self.settings.plan_budget_s);
+            self.request(request, self.plan_lead_s);
         }
     }
 }

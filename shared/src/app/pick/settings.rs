@@ -55,8 +55,20 @@ pub struct PickSettings {
     /// result is used (results are applied at this fixed delay, so a run is
     /// deterministic whatever the processor's speed).
     pub estimate_budget_s: f32,
-    /// The same for an intercept plan (see `estimate_budget_s`).
+    /// The same for an intercept plan (see `estimate_budget_s`): the plan
+    /// starts this long after its request, so it is planned from where the
+    /// part will be then. A plan that comes later than that is dropped and
+    /// planned again with a longer lead (see `max_plan_lead_s`).
     pub plan_budget_s: f32,
+    /// Longest wait for an estimate before the pick stops with `Timeout`. A
+    /// late estimate is still good (the arm holds still meanwhile and the
+    /// estimate is stamped with its request's time), so this only catches a
+    /// worker that hangs; it is above what the final estimate takes on a
+    /// 168 MHz Cortex-M4F (about 14 s, docs/performance.md).
+    pub estimate_timeout_s: f32,
+    /// The longest lead an intercept plan is given after its results came
+    /// late (see `plan_budget_s`).
+    pub max_plan_lead_s: f32,
     /// A calibration is refused when its 1-sigma part or base position exceeds these.
     pub max_part_sigma_m: f32,
     /// The base position's limit (see `max_part_sigma_m`).
@@ -178,6 +190,8 @@ impl Default for PickSettings {
             locate_timeout_s: 40.0,
             estimate_budget_s: 1.0,
             plan_budget_s: 0.25,
+            estimate_timeout_s: 30.0,
+            max_plan_lead_s: 2.0,
             max_part_sigma_m: 0.005,
             max_base_sigma_m: 0.03,
             confident_base_sigma_m: 0.003,
