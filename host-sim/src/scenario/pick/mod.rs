@@ -20,7 +20,7 @@ pub use image::ImageSettings;
 
 pub use settings::{
     CameraBump, CameraFaults, CameraSettings, CellSettings, ConveyorSettings, DriveSettings,
-    FaultWindow, GripperSettings, MissedCounts, PartSettings, RobotSettings, SpeedChange,
+    FaultWindow, GripperSettings, LayoutKind, MissedCounts, PartSettings, RobotSettings, SpeedChange,
     StopSettings, WorldFaults,
 };
 
