@@ -213,7 +213,10 @@ pub fn azimuth_table(summaries: &[TrialSummary]) -> String {
         let high = low + 30.0;
         let in_bin: Vec<&TrialSummary> = summaries
             .iter()
-            .filter(|s| s.disc_azimuth_deg >= low && (s.disc_azimuth_deg < high || (bin == 11 && s.disc_azimuth_deg <= high)))
+            .filter(|s| {
+                s.disc_azimuth_deg >= low
+                    && (s.disc_azimuth_deg < high || (bin == 11 && s.disc_azimuth_deg <= high))
+            })
             .collect();
         let successes = in_bin.iter().filter(|s| s.success).count();
         let mut others: Vec<(String, usize)> = Vec::new();

@@ -129,12 +129,14 @@ impl Arm {
 
     /// Whether the camera sees both marks of the gripper held down over `tool`.
     fn marks_seen(&self, workcell: &Workcell, tool: &Vector3<f64>) -> bool {
-        effector_marks_base(&self.pose_over(tool)).iter().all(|mark| {
-            workcell
-                .camera
-                .project_in_view(&workcell.disc_from_base(mark), VIEW_MARGIN_PX)
-                .is_some()
-        })
+        effector_marks_base(&self.pose_over(tool))
+            .iter()
+            .all(|mark| {
+                workcell
+                    .camera
+                    .project_in_view(&workcell.disc_from_base(mark), VIEW_MARGIN_PX)
+                    .is_some()
+            })
     }
 }
 
@@ -173,7 +175,8 @@ pub fn reachable_part_arc_deg(workcell: &Workcell, settings: &PickSettings) -> f
     let reachable: Vec<bool> = (0..CIRCLE_SAMPLES)
         .map(|k| {
             let theta = k as f64 * TAU / CIRCLE_SAMPLES as f64;
-            let grasp = workcell.base_from_disc(&Workcell::disc_from_rotating(theta, &part_rotating));
+            let grasp =
+                workcell.base_from_disc(&Workcell::disc_from_rotating(theta, &part_rotating));
             arm.reaches(&grasp) && arm.reaches(&(grasp + hover))
         })
         .collect();

@@ -491,13 +491,27 @@ impl PickController {
                 } else if self.route.sweep_start(next).is_some() {
                     // Not seen (often enough) at this radius: the next one.
                     self.enter(Step::SearchShift(next));
+                } else if let Some(most_seen) = self.route.most_seen_sweep() {
+                    // Seen, but in passing (a narrow view at the band's
+                    // edge): back over where, to hold there and look.
+                    self.route.return_to(most_seen);
+                    self.enter(Step::SearchReturn);
                 } else {
                     // Every radius swept over joint 1's whole range, and the
                     // camera never saw the gripper: it cannot, from where it stands.
                     self.raise(FaultCause::EffectorNotSeen);
                 }
             }
-            Step::SearchReturn if finished => self.enter(Step::EstimatePreliminary),
+            Step::SearchReturn if finished => {
+                if self.counters.effector_sightings >= settings.min_effector_sightings {
+                    self.enter(Step::EstimatePreliminary);
+                } else if in_step
+                    >= self.motion.duration_s().unwrap_or(0.0) + settings.search_dwell_s
+                {
+                    // Held over where the marks were seen, and still too few.
+                    self.raise(FaultCause::EffectorNotSeen);
+                }
+            }
             Step::EstimatePreliminary | Step::EstimateFinal => self.on_estimate(in_step),
             Step::CalibrateMove(i) if finished => self.enter(Step::CalibrateDwell(i)),
             Step::CalibrateDwell(i) if in_step >= settings.calibration_dwell_s => {

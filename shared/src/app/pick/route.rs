@@ -8,7 +8,7 @@ use nalgebra::Vector3;
 
 use super::jobs::yaw_at_azimuth;
 use super::motion::{height_profile, Motion};
-use super::search::{SearchError, SearchPlan};
+use super::search::{SearchError, SearchPlan, MAX_SEARCH_LEGS};
 use super::settings::PickSettings;
 use super::step::Step;
 use crate::angle::wrap_pi;
@@ -29,6 +29,8 @@ pub(super) struct Route {
     search: SearchPlan,
     /// The sweep the search is in (or ended with).
     sweep: u8,
+    /// Sightings of the marks during each sweep (and the step out to it).
+    seen_per_sweep: [u16; MAX_SEARCH_LEGS],
     /// The flange height of the carry to the drop-off and back.
     transfer_z: f32,
     /// Where the arm stood when the part was first located (the last
@@ -54,6 +56,7 @@ impl Route {
             waist_centre_azimuth: 0.0,
             search: SearchPlan::empty(),
             sweep: 0,
+            seen_per_sweep: [0; MAX_SEARCH_LEGS],
             transfer_z: 0.0,
             locate_pose: None,
         }
@@ -73,13 +76,7 @@ impl Route {
         let limits = robot.joint_limits();
         let middle = 0.5 * (limits.position_min.x + limits.position_max.x);
         self.waist_centre_azimuth = start_pose.azimuth_rad + wrap_pi(middle - q_start.x);
-        self.search = SearchPlan::new(
-            robot,
-            q_start,
-            flange_start,
-            travel_z(settings),
-            settings,
-        )?;
+        self.search = SearchPlan::new(robot, q_start, flange_start, travel_z(settings), settings)?;
         Ok(())
     }
 
@@ -135,6 +132,29 @@ impl Route {
     /// The sweep the search is in, or ended with.
     pub(super) fn sweep(&self) -> u8 {
         self.sweep
+    }
+
+    /// The camera saw the marks during sweep `leg` (or the step out to it).
+    pub(super) fn seen_in(&mut self, leg: u8) {
+        if let Some(count) = self.seen_per_sweep.get_mut(usize::from(leg)) {
+            *count = count.saturating_add(1);
+        }
+    }
+
+    /// The sweep in which the camera saw the marks most often, if it saw them.
+    pub(super) fn most_seen_sweep(&self) -> Option<u8> {
+        let mut best: Option<(u8, u16)> = None;
+        for (leg, &count) in (0u8..).zip(self.seen_per_sweep.iter()) {
+            if count > 0 && best.is_none_or(|(_, most)| count > most) {
+                best = Some((leg, count));
+            }
+        }
+        best.map(|(leg, _)| leg)
+    }
+
+    /// The search goes back to sweep `leg`'s radius.
+    pub(super) fn return_to(&mut self, leg: u8) {
+        self.sweep = leg;
     }
 
     /// Where sweep `leg` starts, if the search has it.

@@ -178,9 +178,7 @@ impl SearchPlan {
 
     /// The sweeps, in order.
     pub fn legs(&self) -> &[SearchLeg] {
-        self.legs
-            .get(..usize::from(self.count))
-            .unwrap_or(&[])
+        self.legs.get(..usize::from(self.count)).unwrap_or(&[])
     }
 
     /// Sweep `index`, if the plan has it.
@@ -198,7 +196,7 @@ impl SearchPlan {
     /// before ended (a step out or in at that end).
     pub fn ends(&self, index: u8) -> Option<(f32, f32, f32)> {
         let leg = self.leg(index)?;
-        let (from, to) = if index % 2 == 0 {
+        let (from, to) = if index.is_multiple_of(2) {
             (leg.low_azimuth_rad, leg.high_azimuth_rad)
         } else {
             (leg.high_azimuth_rad, leg.low_azimuth_rad)
@@ -248,8 +246,14 @@ mod tests {
             let low = q1_at(&q, leg.radius_m, leg.low_azimuth_rad);
             let high = q1_at(&q, leg.radius_m, leg.high_azimuth_rad);
             let margin = settings.search_joint1_margin_rad;
-            assert!((low - (limits.position_min.x + margin)).abs() < 1e-4, "{low}");
-            assert!((high - (limits.position_max.x - margin)).abs() < 1e-4, "{high}");
+            assert!(
+                (low - (limits.position_min.x + margin)).abs() < 1e-4,
+                "{low}"
+            );
+            assert!(
+                (high - (limits.position_max.x - margin)).abs() < 1e-4,
+                "{high}"
+            );
             // More than 300 degrees of azimuth in every sweep.
             assert!(leg.high_azimuth_rad - leg.low_azimuth_rad > 5.3);
         }
@@ -265,7 +269,10 @@ mod tests {
         assert!((radii[0] - start_radius).abs() < 1e-5, "{radii:?}");
         let distances: std::vec::Vec<f32> =
             radii.iter().map(|r| (r - start_radius).abs()).collect();
-        assert!(distances.windows(2).all(|d| d[0] <= d[1] + 1e-6), "{radii:?}");
+        assert!(
+            distances.windows(2).all(|d| d[0] <= d[1] + 1e-6),
+            "{radii:?}"
+        );
         // The band: from clear of the base axis to the arm's reach at travel height.
         let z = plan.flange_z_m();
         let robot = robot();
@@ -295,7 +302,10 @@ mod tests {
             let (_, _, previous_end) = plan.ends(i - 1).unwrap();
             let (_, from, _) = plan.ends(i).unwrap();
             // The same joint-1 end (azimuths differ by the offset change only).
-            assert!((from - previous_end).abs() < 0.3, "{i}: {from} {previous_end}");
+            assert!(
+                (from - previous_end).abs() < 0.3,
+                "{i}: {from} {previous_end}"
+            );
         }
         assert!(plan.ends(plan.legs().len() as u8).is_none());
     }

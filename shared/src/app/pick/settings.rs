@@ -19,6 +19,10 @@ pub struct PickSettings {
     pub search_radius_step_m: f32,
     /// The search's radii keep within this fraction of the arm's stretch.
     pub search_max_stretch: f32,
+    /// When every sweep has passed and the marks were seen, but fewer times
+    /// than `min_effector_sightings`, the arm goes back over where they were
+    /// seen most and holds there this long for more, s.
+    pub search_dwell_s: f32,
     /// Sightings of the marks needed before the first estimate.
     pub min_effector_sightings: u32,
     /// Grasp-point heights above the part's top at which the marks are shown for
@@ -165,6 +169,7 @@ impl Default for PickSettings {
             search_joint1_margin_rad: 0.1,
             search_radius_step_m: 0.2,
             search_max_stretch: 0.9,
+            search_dwell_s: 4.0,
             min_effector_sightings: 6,
             calibration_heights_m: [0.35, 0.20, 0.08],
             calibration_dwell_s: 0.6,

@@ -49,9 +49,7 @@ impl Step {
             Self::SearchApproach
             | Self::SearchSweep(_)
             | Self::SearchShift(_)
-            | Self::SearchReturn => {
-                PickPhase::SearchEffector
-            }
+            | Self::SearchReturn => PickPhase::SearchEffector,
             Self::CalibrateMove(_) | Self::CalibrateDwell(_) => PickPhase::CalibrateBase,
             Self::EstimatePreliminary | Self::EstimateFinal => PickPhase::Estimating,
             Self::Locate | Self::InterceptAbandoned | Self::Relocate => PickPhase::Locate,
