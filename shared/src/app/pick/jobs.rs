@@ -165,9 +165,17 @@ pub fn part_path_enters_reach(
     q_seed: &JointVector<f32>,
     robot: &Puma560<f32>,
 ) -> bool {
+    // Each try starts from `q_seed` with joint 1 turned by the azimuth from
+    // the arm's flange to the part, so the inverse kinematics need not swing
+    // the waist round from afar (it may not converge from there).
+    let flange = robot.forward_kinematics(q_seed).translation.vector;
+    let flange_azimuth = libm::atan2f(flange.y, flange.x);
     (0..PART_PATH_SAMPLES).any(|k| {
         let theta = f32::from(k) * core::f32::consts::TAU / f32::from(PART_PATH_SAMPLES);
-        reachable_at(estimate, theta, q_seed, robot)
+        let part = estimate.grasp_point(theta, 0.0, 0.0).position;
+        let mut seed = *q_seed;
+        seed.x += crate::angle::wrap_pi(libm::atan2f(part.y, part.x) - flange_azimuth);
+        reachable_at(estimate, theta, &seed, robot)
     })
 }
 
