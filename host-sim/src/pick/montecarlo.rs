@@ -16,6 +16,7 @@ use super::record::{PickResult, PickRun};
 use super::report::result_name;
 use super::runner::run_pick_in_process;
 use crate::scenario::pick::PickExperiment;
+use crate::world::dimensions::SHOULDER_HEIGHT_M;
 
 /// One trial, flattened for the CSV and the statistics.
 #[derive(Debug, Clone, Serialize)]
@@ -39,6 +40,12 @@ pub struct TrialSummary {
     pub max_speed_ratio: f64,
     pub max_torque_ratio: f64,
     pub min_tool_clearance_mm: f64,
+    /// The layout (truth, for the report only): the disc centre's direction
+    /// from the robot's front, its distance from the base axis, its surface
+    /// below the shoulder axis.
+    pub disc_azimuth_deg: f64,
+    pub disc_distance_m: f64,
+    pub disc_below_shoulder_m: f64,
 }
 
 fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
@@ -47,6 +54,7 @@ fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
     let estimate = grasp.and_then(|g| g.estimate_error_m);
     let [ex, ey, ez] = estimate.unwrap_or([nan; 3]);
     let norm3 = |[x, y, z]: [f64; 3]| (x * x + y * y + z * z).sqrt();
+    let disc = run.layout.disc_centre_base_m;
     TrialSummary {
         trial,
         seed,
@@ -67,6 +75,9 @@ fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
         max_speed_ratio: run.max_speed_ratio,
         max_torque_ratio: run.max_torque_ratio,
         min_tool_clearance_mm: run.min_tool_clearance_m * 1e3,
+        disc_azimuth_deg: disc[1].atan2(disc[0]).to_degrees(),
+        disc_distance_m: disc[0].hypot(disc[1]),
+        disc_below_shoulder_m: SHOULDER_HEIGHT_M - disc[2],
     }
 }
 
@@ -188,18 +199,58 @@ pub fn montecarlo_table(experiment: &str, summaries: &[TrialSummary]) -> String 
         out,
         "\nLowest grasp-point height above the disc surface while not holding the part: {lowest:.1} mm (the grasp point descends to the part's top, 40 or 70 mm)."
     );
+    out.push_str(&azimuth_table(summaries));
+    out
+}
+
+/// Success by the disc centre's direction from the robot's front, in 30-degree bins.
+pub fn azimuth_table(summaries: &[TrialSummary]) -> String {
+    let mut out = String::from(
+        "\n| disc azimuth (deg) | trials | successes | success | other outcomes |\n|---|---|---|---|---|\n",
+    );
+    for bin in 0..12 {
+        let low = -180.0 + 30.0 * f64::from(bin);
+        let high = low + 30.0;
+        let in_bin: Vec<&TrialSummary> = summaries
+            .iter()
+            .filter(|s| {
+                s.disc_azimuth_deg >= low
+                    && (s.disc_azimuth_deg < high || (bin == 11 && s.disc_azimuth_deg <= high))
+            })
+            .collect();
+        let successes = in_bin.iter().filter(|s| s.success).count();
+        let mut others: Vec<(String, usize)> = Vec::new();
+        for s in in_bin.iter().filter(|s| !s.success) {
+            match others.iter_mut().find(|(name, _)| *name == s.result) {
+                Some((_, count)) => *count += 1,
+                None => others.push((s.result.clone(), 1)),
+            }
+        }
+        let others: Vec<String> = others.iter().map(|(n, c)| format!("{n} {c}")).collect();
+        let rate = if in_bin.is_empty() {
+            "-".to_string()
+        } else {
+            format!("{:.1} %", 100.0 * successes as f64 / in_bin.len() as f64)
+        };
+        let _ = writeln!(
+            out,
+            "| {low:.0} to {high:.0} | {} | {successes} | {rate} | {} |",
+            in_bin.len(),
+            others.join(", ")
+        );
+    }
     out
 }
 
 /// Writes `trials.csv`: one line per trial.
 pub fn write_trials_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
     let mut text = String::from(
-        "trial,seed,result,success,estimate_error_x_mm,estimate_error_y_mm,estimate_error_z_mm,estimate_error_mm,estimate_yaw_error_deg,grasp_error_mm,grasp_yaw_error_deg,grasp_relative_speed_mm_s,calibrated_after_s,duration_s,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm\n",
+        "trial,seed,result,success,estimate_error_x_mm,estimate_error_y_mm,estimate_error_z_mm,estimate_error_mm,estimate_yaw_error_deg,grasp_error_mm,grasp_yaw_error_deg,grasp_relative_speed_mm_s,calibrated_after_s,duration_s,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm,disc_azimuth_deg,disc_distance_m,disc_below_shoulder_m\n",
     );
     for s in summaries {
         let _ = writeln!(
             text,
-            "{},{},\"{}\",{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.4},{:.4},{:.2}",
+            "{},{},\"{}\",{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.4},{:.4},{:.2},{:.2},{:.4},{:.4}",
             s.trial,
             s.seed,
             s.result.replace('"', "'"),
@@ -216,7 +267,10 @@ pub fn write_trials_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
             s.duration_s,
             s.max_speed_ratio,
             s.max_torque_ratio,
-            s.min_tool_clearance_mm
+            s.min_tool_clearance_mm,
+            s.disc_azimuth_deg,
+            s.disc_distance_m,
+            s.disc_below_shoulder_m
         );
     }
     fs::write(path, text).with_context(|| format!("writing {}", path.display()))

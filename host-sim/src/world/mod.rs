@@ -5,6 +5,7 @@
 //!   camera and gripper in lock step with the controller's periods.
 //! - [`workcell`]: the true geometry of one workcell (camera, disc, part, robot base).
 //! - [`generator`]: random workcells drawn from a scenario's ranges.
+//! - [`serve`]: which layouts the arm can serve.
 //! - [`effector`]: end-effector poses the PUMA 560 can reach and the camera can see.
 //! - [`dimensions`]: the disc's radius and the PUMA 560's shoulder height.
 //! - [`camera`]: the pinhole camera of the contract.
@@ -27,6 +28,7 @@ pub mod generator;
 pub mod gripper;
 pub mod plant;
 pub mod render;
+pub mod serve;
 pub mod vision;
 pub mod workcell;
 

@@ -31,8 +31,11 @@ pub use messages::*;
 /// on every camera trigger of its ticker, which a v1 host would refuse as a
 /// bad frame five times a second) and `CostUnit::Nanoseconds`.
 /// v3: `CellConfig` without `pixel_sigma_px` (the controller measures the
-/// pixel noise from its residuals). v4: `RuntimeReport::job_worst` per
-/// kind of job ([`JobCosts`]). The handshake
+/// pixel noise from its residuals).
+/// v4: `RuntimeReport::job_worst` per kind of job ([`JobCosts`]);
+/// `FaultCause::DiscOutOfReach` and `FaultCause::PartOutOfReach` (a layout
+/// the arm cannot serve stops with why; a v3 host could not decode them).
+/// The handshake
 /// refuses any other version with `UnsupportedVersion` (detail: this one).
 pub const PROTOCOL_VERSION: u16 = 4;
 

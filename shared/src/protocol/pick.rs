@@ -132,6 +132,15 @@ pub enum FaultCause {
     /// than the pick allows (`PickSettings::max_descent_step_m`): the
     /// estimate it was planned from is not trusted that far.
     BelowSafeHeight,
+    /// No pose over the disc is both within the arm's reach (joint ranges
+    /// included) and in the camera's view with the gripper's marks: the
+    /// robot cannot be calibrated against this disc (the disc is out of
+    /// reach, or the camera does not see the gripper over it).
+    DiscOutOfReach,
+    /// The part's circle on the disc (its path as the disc turns) never
+    /// enters the arm's workspace (reach, joint ranges, clear of the base
+    /// axis): the part can never be grasped in this layout.
+    PartOutOfReach,
 }
 
 /// A snapshot of the controller's estimates, sent every `telemetry_period_ticks`.

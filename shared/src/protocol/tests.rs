@@ -398,7 +398,7 @@ fn the_documented_frame_limits_hold() {
 
 /// The v2 additions are appended: every v1 message keeps its encoding (the
 /// new variants' indices come after the old ones). v3 changed `CellConfig`
-/// only, and the version says so.
+/// only, v4 appended two fault causes, and the version says so.
 #[test]
 fn v2_appends_the_trigger_event_and_keeps_v1_encodings() {
     assert_eq!(PROTOCOL_VERSION, 4);

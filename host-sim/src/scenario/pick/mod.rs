@@ -20,8 +20,8 @@ pub use image::ImageSettings;
 
 pub use settings::{
     CameraBump, CameraFaults, CameraSettings, CellSettings, ConveyorSettings, DriveSettings,
-    FaultWindow, GripperSettings, MissedCounts, PartSettings, RobotSettings, SpeedChange,
-    StopSettings, WorldFaults,
+    FaultWindow, GripperSettings, LayoutKind, MissedCounts, PartSettings, RobotSettings,
+    SpeedChange, StopSettings, WorldFaults,
 };
 
 /// The embedded default scenario file (`host-sim scenarios/default.toml`).

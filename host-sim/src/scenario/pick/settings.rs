@@ -84,7 +84,17 @@ pub struct SpeedChange {
     pub acceleration_rad_s2: f64,
 }
 
-/// Ranges of the cell's layout, drawn uniformly per seed.
+/// Ranges of the cell's layout, drawn uniformly per seed; the world keeps the
+/// layouts the arm can serve (`world::serve`), or with `layouts` only those it
+/// cannot (to show how the controller stops on them), or any.
+///
+/// The defaults are the layouts the PUMA 560 can reach the parts in: the disc
+/// in any direction round the robot; its centre from 0.65 m (the disc's 0.45 m
+/// radius and the robot's 0.2 m column) to 1.0 m from the base axis (the
+/// gripper-down reach is 0.80 m, 93 % of the 0.864 m stretch, and parts ride
+/// 0.10 to 0.30 m from the disc's centre); its surface 0.30 m (the start
+/// pose's gripper clears a 7 cm part by 0.1 m) to 0.60 m (near the robot's
+/// foot: the reach at the grasp is still 0.69 m) below the shoulder.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CellSettings {
@@ -94,17 +104,35 @@ pub struct CellSettings {
     /// Disc surface below the shoulder axis (0.672 m above the base), m: low
     /// enough for the arm's start pose to clear a 7 cm part.
     pub disc_below_shoulder_m: [f64; 2],
-    /// Direction of the disc centre from the robot's front (+X), degrees: the
-    /// robot faces the conveyor (joint 1 turns at most 160 degrees either way).
+    /// Direction of the disc centre from the robot's front (+X), degrees
+    /// (joint 1 turns at most 160 degrees either way: behind the robot only
+    /// part of the disc is in reach, and `layouts` decides).
     pub disc_azimuth_deg: [f64; 2],
+    /// Which of the drawn layouts the world keeps (optional, default servable).
+    #[serde(default)]
+    pub layouts: LayoutKind,
+}
+
+/// Which drawn layouts the world keeps.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LayoutKind {
+    /// Only those the arm can serve (`world::serve::check_serve`).
+    #[default]
+    Servable,
+    /// Only those it cannot: the controller must stop on them, saying why.
+    Unservable,
+    /// Every layout drawn.
+    Any,
 }
 
 impl Default for CellSettings {
     fn default() -> Self {
         Self {
-            disc_distance_m: [0.65, 0.78],
-            disc_below_shoulder_m: [0.30, 0.45],
-            disc_azimuth_deg: [-90.0, 90.0],
+            disc_distance_m: [0.65, 1.0],
+            disc_below_shoulder_m: [0.30, 0.60],
+            disc_azimuth_deg: [-180.0, 180.0],
+            layouts: LayoutKind::Servable,
         }
     }
 }

@@ -10,6 +10,7 @@ use anyhow::{bail, Context, Result};
 use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
+use shared::app::pick::settings::PickSettings;
 use shared::fusion::CounterWidth;
 use shared::robot::JointVector;
 
@@ -17,7 +18,7 @@ use super::{
     mean, PartState, World, DROP_OFF_CLEARANCE_M, MAX_LAYOUT_DRAWS, STOP_REACH_M,
     STOP_SEARCH_STEP_S, TOOL_PAYLOAD_COM_FLANGE_M,
 };
-use crate::scenario::pick::PickExperiment;
+use crate::scenario::pick::{LayoutKind, PickExperiment};
 use crate::scenario::recording::{DiscPlacement, FeatureHeights, Scenario};
 use crate::world::conveyor::{Conveyor, ConveyorProfile, ConveyorStop, MissedBurst, SpeedRamp};
 use crate::world::dimensions::DISC_RADIUS_M;
@@ -25,6 +26,7 @@ use crate::world::drive::PlantDrives;
 use crate::world::generator::random_workcell;
 use crate::world::gripper::GraspTolerance;
 use crate::world::plant::{JointEncoders, RobotPlant};
+use crate::world::serve::{check_serve, grasp_reachable};
 use crate::world::vision::CameraSim;
 use crate::world::workcell::Workcell;
 
@@ -117,23 +119,34 @@ pub(super) fn disc_clear_of(workcell: &Workcell, drop_off_base: &Vector3<f64>) -
 
 /// A workcell from the experiment's ranges with the disc clear of the user's
 /// drop-off: the world adapts its layout to the bin, never the bin to the
-/// layout (layouts too close are drawn again).
+/// layout (layouts too close are drawn again). Of those, it keeps the ones the
+/// arm can serve (`world::serve`), or the others, as `cell.layouts` asks.
 pub(super) fn clear_workcell(
     rng: &mut ChaCha8Rng,
     experiment: &PickExperiment,
 ) -> Result<Workcell> {
     let scenario = workcell_scenario(experiment);
     let drop_off_base = Vector3::from(experiment.drop_off_base_m);
+    let settings = PickSettings::default();
     for _ in 0..MAX_LAYOUT_DRAWS {
         let (workcell, _) = random_workcell(rng, &scenario)?;
-        if disc_clear_of(&workcell, &drop_off_base) {
+        if !disc_clear_of(&workcell, &drop_off_base) {
+            continue;
+        }
+        let keep = match experiment.cell.layouts {
+            LayoutKind::Any => true,
+            LayoutKind::Servable => check_serve(&workcell, &settings).is_ok(),
+            LayoutKind::Unservable => check_serve(&workcell, &settings).is_err(),
+        };
+        if keep {
             return Ok(workcell);
         }
     }
     bail!(
         "no layout of the cell ranges in {MAX_LAYOUT_DRAWS} draws keeps the disc \
-         {DROP_OFF_CLEARANCE_M} m clear of drop_off_base_m = {:?}",
-        experiment.drop_off_base_m
+         {DROP_OFF_CLEARANCE_M} m clear of drop_off_base_m = {:?} and is {:?}",
+        experiment.drop_off_base_m,
+        experiment.cell.layouts
     )
 }
 
@@ -213,13 +226,37 @@ impl World {
                 workcell.base_from_disc_translation_m.z,
             ));
             // On the part's circle, the point at a comfortable reach from the base
-            // axis (the nearest point when the circle stays further away): the
-            // operator stops the disc with the part in front of the robot.
+            // axis (the nearest point when the circle stays further away) where
+            // the arm reaches it: the operator stops the disc with the part in
+            // front of the robot. Of the circle's two such points the first the
+            // arm reaches (joint 1 ends behind the robot); when neither, the
+            // reachable point of the circle nearest that reach.
             let (d, r) = (robot_disc.xy().norm(), part_rotating.xy().norm());
             let cos_off = ((d * d + r * r - STOP_REACH_M * STOP_REACH_M) / (2.0 * d * r.max(1e-9)))
                 .clamp(-1.0, 1.0);
-            let target = robot_disc.y.atan2(robot_disc.x) + cos_off.acos()
-                - part_rotating.y.atan2(part_rotating.x);
+            let robot_angle = robot_disc.y.atan2(robot_disc.x);
+            let part_angle = part_rotating.y.atan2(part_rotating.x);
+            let pick_settings = PickSettings::default();
+            let part_at = |theta: f64| {
+                workcell.base_from_disc(&Workcell::disc_from_rotating(theta, &part_rotating))
+            };
+            let candidates = [
+                robot_angle + cos_off.acos() - part_angle,
+                robot_angle - cos_off.acos() - part_angle,
+            ];
+            let target = candidates
+                .into_iter()
+                .find(|&theta| grasp_reachable(&part_at(theta), &pick_settings))
+                .or_else(|| {
+                    (0..180)
+                        .map(|k| f64::from(k) * TAU / 180.0)
+                        .filter(|&theta| grasp_reachable(&part_at(theta), &pick_settings))
+                        .min_by(|a, b| {
+                            let off = |t: f64| (part_at(t).xy().norm() - STOP_REACH_M).abs();
+                            off(*a).total_cmp(&off(*b))
+                        })
+                })
+                .unwrap_or(candidates[0]);
             let min_speed = settings.speed_rad_s.abs() * (1.0 - settings.ripple_fraction);
             let start_s = stop_instant_for_rest_angle(
                 &conveyor,

@@ -42,7 +42,7 @@ mod tests;
 /// the world draws its layouts with the disc this far from the bin.
 pub const DROP_OFF_CLEARANCE_M: f64 = 0.1;
 /// Draws of the layout at most, for one with the disc clear of the drop-off.
-const MAX_LAYOUT_DRAWS: usize = 100;
+const MAX_LAYOUT_DRAWS: usize = 400;
 /// Distance from the base axis at which a stopped disc leaves the part, m.
 pub const STOP_REACH_M: f64 = 0.6;
 /// The unknown tool payload sits halfway down the gripper, on the flange's axis.

@@ -257,8 +257,13 @@ fn gripper_over(
 #[test]
 fn the_detector_finds_every_visible_mark_of_the_world() {
     // Frames of real workcells: the disc at many angles, the gripper over
-    // the disc at several places; noise-free, with motion blur.
-    let experiment = PickScenarioFile::default_experiment("turning").unwrap();
+    // the disc at several places; noise-free, with motion blur. Layouts in
+    // front of the robot and near it (the ranges before the wide ones), so
+    // that the gripper reaches over the disc in most frames.
+    let mut experiment = PickScenarioFile::default_experiment("turning").unwrap();
+    experiment.cell.disc_distance_m = [0.65, 0.78];
+    experiment.cell.disc_below_shoulder_m = [0.30, 0.45];
+    experiment.cell.disc_azimuth_deg = [-90.0, 90.0];
     let settings = experiment.image;
     let mut detector = Detector::new(DetectorSettings::default());
     let mut blobs = heapless::Vec::new();

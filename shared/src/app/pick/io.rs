@@ -8,6 +8,7 @@ use nalgebra::Vector6;
 
 use super::estimate::CellEstimate;
 use super::handoff::{ControlEvent, Sighting, VisionNews};
+use super::step::Step;
 use super::{PickController, PickCounters, MAX_TICK_MESSAGES};
 use crate::planning::TaskState;
 use crate::protocol::{
@@ -83,6 +84,11 @@ impl PickController {
     fn on_sighting(&mut self, sighting: &Sighting) {
         self.counters.effector_sightings = self.counters.effector_sightings.saturating_add(1);
         self.sightings.record(sighting);
+        match self.step {
+            Step::SearchApproach => self.route.seen_in(0),
+            Step::SearchSweep(leg) | Step::SearchShift(leg) => self.route.seen_in(leg),
+            _ => {}
+        }
     }
 
     /// The next event for the pairer or the worker, oldest first. Drain them

@@ -151,6 +151,34 @@ fn reachable_at(
             .is_ok_and(|q| well_conditioned(robot, &q))
 }
 
+/// Conveyor angles at which [`part_path_enters_reach`] tries the part: every 10 degrees.
+const PART_PATH_SAMPLES: u16 = 36;
+
+/// Whether the part's circle (its grasp point as the disc turns, Eq 1)
+/// enters the arm's workspace anywhere: a gripper-down grasp within reach and
+/// joint ranges, well conditioned, clear of the base axis, at one of
+/// [`PART_PATH_SAMPLES`] conveyor angles. When it never does, no intercept
+/// can ever be planned, whatever the conveyor does: the layout cannot be
+/// served (`FaultCause::PartOutOfReach`).
+pub fn part_path_enters_reach(
+    estimate: &CellEstimate,
+    q_seed: &JointVector<f32>,
+    robot: &Puma560<f32>,
+) -> bool {
+    // Each try starts from `q_seed` with joint 1 turned by the azimuth from
+    // the arm's flange to the part, so the inverse kinematics need not swing
+    // the waist round from afar (it may not converge from there).
+    let flange = robot.forward_kinematics(q_seed).translation.vector;
+    let flange_azimuth = libm::atan2f(flange.y, flange.x);
+    (0..PART_PATH_SAMPLES).any(|k| {
+        let theta = f32::from(k) * core::f32::consts::TAU / f32::from(PART_PATH_SAMPLES);
+        let part = estimate.grasp_point(theta, 0.0, 0.0).position;
+        let mut seed = *q_seed;
+        seed.x += crate::angle::wrap_pi(libm::atan2f(part.y, part.x) - flange_azimuth);
+        reachable_at(estimate, theta, &seed, robot)
+    })
+}
+
 /// The earliest intercept of the part's hover point from `start` (at rest, joint
 /// angles `q_start`), among those after which the part stays reachable for
 /// `grasp_window_s`. The part's future comes from Eq 1 at constant conveyor speed.

@@ -40,6 +40,7 @@ pub mod motion;
 pub mod pairing;
 mod period;
 mod route;
+pub mod search;
 pub mod settings;
 mod sightings;
 mod step;
@@ -254,8 +255,13 @@ impl PickController {
         let x_axis = flange.rotation * Vector3::x();
         let yaw = libm::atan2f(x_axis.y, x_axis.x);
         let position = flange.translation.vector;
-        self.route
-            .start_from(ArcPoint::from_position(&position, yaw));
+        let planned = self.route.start_from(
+            ArcPoint::from_position(&position, yaw),
+            &self.model,
+            &self.observer.q(),
+            &position,
+            &self.settings,
+        );
         self.reference = TaskState::at_rest(position, yaw);
         self.motion = Motion::Hold(self.reference);
         self.last_paired_s = self.now_s;
@@ -263,7 +269,15 @@ impl PickController {
         // travel height (declared clear of any disc and part) if lower.
         self.sightings
             .start_at(position.z, travel_z(&self.settings));
-        self.enter(Step::SearchApproach);
+        match planned {
+            Ok(()) => self.enter(Step::SearchApproach),
+            // The settings' travel height is beyond the arm's reach: no search.
+            Err(_) => {
+                self.step = Step::SearchApproach;
+                self.step_started_s = self.now_s;
+                self.raise(FaultCause::BadConfig);
+            }
+        }
     }
 
     /// Stops trusting the task space: the joint brake takes over for good.
@@ -339,12 +353,36 @@ impl PickController {
                 self.hold_here();
                 return;
             }
-            Step::SearchApproach => self.arc_to(self.route.sweep_end(-1.0, &settings)),
-            Step::SearchSweep => self.arc_to(self.route.sweep_end(1.0, &settings)),
+            Step::SearchApproach | Step::SearchShift(_) => {
+                let leg = match step {
+                    Step::SearchShift(leg) => leg,
+                    _ => 0,
+                };
+                match self.route.sweep_start(leg) {
+                    Some(target) => self.arc_to(target),
+                    None => Err(PlanError::InvalidLimits {
+                        what: "the search has no such sweep",
+                    }),
+                }
+            }
+            Step::SearchSweep(leg) => {
+                self.route.sweeping(leg);
+                match self.route.sweep_end(leg) {
+                    Some(target) => self.arc_to(target),
+                    None => Err(PlanError::InvalidLimits {
+                        what: "the search has no such sweep",
+                    }),
+                }
+            }
             Step::SearchReturn => {
                 // Back to where the marks were seen: over the disc, near the part.
-                let azimuth = self.route.azimuth_near_start(self.sightings.azimuth());
-                self.arc_to(self.route.search_point(azimuth, &settings))
+                let leg = self.route.sweep();
+                match self.route.search_return(leg, self.sightings.azimuth()) {
+                    Some(target) => self.arc_to(target),
+                    None => Err(PlanError::InvalidLimits {
+                        what: "the search has no such sweep",
+                    }),
+                }
             }
             Step::EstimatePreliminary | Step::EstimateFinal => {
                 self.hold_here();
@@ -456,15 +494,36 @@ impl PickController {
         let settings = self.settings;
         match self.step {
             Step::Start | Step::Done | Step::Faulted => {}
-            Step::SearchApproach if finished => self.enter(Step::SearchSweep),
-            Step::SearchSweep if finished => {
-                if self.counters.effector_sightings < settings.min_effector_sightings {
-                    self.raise(FaultCause::EffectorNotSeen);
-                } else {
+            Step::SearchApproach if finished => self.enter(Step::SearchSweep(0)),
+            Step::SearchShift(leg) if finished => self.enter(Step::SearchSweep(leg)),
+            Step::SearchSweep(leg) if finished => {
+                let next = leg.saturating_add(1);
+                if self.counters.effector_sightings >= settings.min_effector_sightings {
                     self.enter(Step::SearchReturn);
+                } else if self.route.sweep_start(next).is_some() {
+                    // Not seen (often enough) at this radius: the next one.
+                    self.enter(Step::SearchShift(next));
+                } else if let Some(most_seen) = self.route.most_seen_sweep() {
+                    // Seen, but in passing (a narrow view at the band's
+                    // edge): back over where, to hold there and look.
+                    self.route.return_to(most_seen);
+                    self.enter(Step::SearchReturn);
+                } else {
+                    // Every radius swept over joint 1's whole range, and the
+                    // camera never saw the gripper: it cannot, from where it stands.
+                    self.raise(FaultCause::EffectorNotSeen);
                 }
             }
-            Step::SearchReturn if finished => self.enter(Step::EstimatePreliminary),
+            Step::SearchReturn if finished => {
+                if self.counters.effector_sightings >= settings.min_effector_sightings {
+                    self.enter(Step::EstimatePreliminary);
+                } else if in_step
+                    >= self.motion.duration_s().unwrap_or(0.0) + settings.search_dwell_s
+                {
+                    // Held over where the marks were seen, and still too few.
+                    self.raise(FaultCause::EffectorNotSeen);
+                }
+            }
             Step::EstimatePreliminary | Step::EstimateFinal => self.on_estimate(in_step),
             Step::CalibrateMove(i) if finished => self.enter(Step::CalibrateDwell(i)),
             Step::CalibrateDwell(i) if in_step >= settings.calibration_dwell_s => {

@@ -1,24 +1,36 @@
-//! Where each step of the pick takes the arm: the search sweep at travel
-//! height, the calibration poses, the way back to where the part was located
+//! Where each step of the pick takes the arm: the search's sweeps at travel
+//! height (`search`), the calibration poses, the way back to where the part was located
 //! from, the lift, the transfer to the drop-off and the way home. Every arc
-//! goes round the base axis on the start's side (never through the back of
-//! the robot), with the wrist turned as at the start.
+//! goes round the base axis within joint 1's range (never through the back
+//! of the robot, where joint 1 ends), with the wrist turned as at the start.
 
 use nalgebra::Vector3;
 
 use super::jobs::yaw_at_azimuth;
 use super::motion::{height_profile, Motion};
+use super::search::{SearchError, SearchPlan, MAX_SEARCH_LEGS};
 use super::settings::PickSettings;
 use super::step::Step;
 use crate::angle::wrap_pi;
 use crate::app::tool::TOOL_LENGTH_M;
 use crate::planning::{ArcLimits, ArcMove, ArcPoint, InterceptPlan, PlanError, TaskState};
+use crate::robot::{JointVector, Puma560};
 
 /// The places the pick's route is planned from.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Route {
     /// Where the arm stood at the first sample (and returns to).
     start_pose: ArcPoint<f32>,
+    /// The flange's azimuth with joint 1 in the middle of its range (at the
+    /// start's radius): every azimuth is taken within half a turn of it, so
+    /// arcs keep to joint 1's range and never swing through its ends.
+    waist_centre_azimuth: f32,
+    /// The search's sweeps.
+    search: SearchPlan,
+    /// The sweep the search is in (or ended with).
+    sweep: u8,
+    /// Sightings of the marks during each sweep (and the step out to it).
+    seen_per_sweep: [u16; MAX_SEARCH_LEGS],
     /// The flange height of the carry to the drop-off and back.
     transfer_z: f32,
     /// Where the arm stood when the part was first located (the last
@@ -41,14 +53,31 @@ impl Route {
                 z_m: 0.0,
                 yaw_rad: 0.0,
             },
+            waist_centre_azimuth: 0.0,
+            search: SearchPlan::empty(),
+            sweep: 0,
+            seen_per_sweep: [0; MAX_SEARCH_LEGS],
             transfer_z: 0.0,
             locate_pose: None,
         }
     }
 
-    /// The arm starts at `start_pose`.
-    pub(super) fn start_from(&mut self, start_pose: ArcPoint<f32>) {
+    /// The arm starts at `start_pose`: the search is planned from its joint
+    /// angles `q_start` and flange position `flange_start`.
+    pub(super) fn start_from(
+        &mut self,
+        start_pose: ArcPoint<f32>,
+        robot: &Puma560<f32>,
+        q_start: &JointVector<f32>,
+        flange_start: &Vector3<f32>,
+        settings: &PickSettings,
+    ) -> Result<(), SearchError> {
         self.start_pose = start_pose;
+        let limits = robot.joint_limits();
+        let middle = 0.5 * (limits.position_min.x + limits.position_max.x);
+        self.waist_centre_azimuth = start_pose.azimuth_rad + wrap_pi(middle - q_start.x);
+        self.search = SearchPlan::new(robot, q_start, flange_start, travel_z(settings), settings)?;
+        Ok(())
     }
 
     /// Where the arm started.
@@ -56,10 +85,10 @@ impl Route {
         self.start_pose
     }
 
-    /// An azimuth equivalent to `azimuth` within half a turn of the start's, so
-    /// arcs never swing the waist through the back of the robot.
+    /// An azimuth equivalent to `azimuth` within half a turn of the middle of
+    /// joint 1's range, so arcs never swing the waist through its ends.
     pub(super) fn azimuth_near_start(&self, azimuth: f32) -> f32 {
-        self.start_pose.azimuth_rad + wrap_pi(azimuth - self.start_pose.azimuth_rad)
+        self.waist_centre_azimuth + wrap_pi(azimuth - self.waist_centre_azimuth)
     }
 
     /// `target` with its azimuth on the start's side.
@@ -84,21 +113,67 @@ impl Route {
         })
     }
 
-    /// The search's point at `azimuth`: on the search radius at travel
-    /// height, the wrist as at the start.
-    pub(super) fn search_point(&self, azimuth: f32, settings: &PickSettings) -> ArcPoint<f32> {
+    /// The search's point at `radius` and `azimuth`, at travel height, the
+    /// wrist as at the start.
+    fn search_point(&self, radius: f32, azimuth: f32) -> ArcPoint<f32> {
         ArcPoint {
-            radius_m: settings.search_radius_m,
+            radius_m: radius,
             azimuth_rad: azimuth,
-            z_m: travel_z(settings),
+            z_m: self.search.flange_z_m(),
             yaw_rad: yaw_at_azimuth(&self.start_pose, azimuth),
         }
     }
 
-    /// One end of the search sweep: `side` is -1 (the approach) or 1 (the sweep).
-    pub(super) fn sweep_end(&self, side: f32, settings: &PickSettings) -> ArcPoint<f32> {
-        let azimuth = self.start_pose.azimuth_rad + side * settings.search_half_sweep_rad;
-        self.search_point(azimuth, settings)
+    /// The search is in sweep `leg`.
+    pub(super) fn sweeping(&mut self, leg: u8) {
+        self.sweep = leg;
+    }
+
+    /// The sweep the search is in, or ended with.
+    pub(super) fn sweep(&self) -> u8 {
+        self.sweep
+    }
+
+    /// The camera saw the marks during sweep `leg` (or the step out to it).
+    pub(super) fn seen_in(&mut self, leg: u8) {
+        if let Some(count) = self.seen_per_sweep.get_mut(usize::from(leg)) {
+            *count = count.saturating_add(1);
+        }
+    }
+
+    /// The sweep in which the camera saw the marks most often, if it saw them.
+    pub(super) fn most_seen_sweep(&self) -> Option<u8> {
+        let mut best: Option<(u8, u16)> = None;
+        for (leg, &count) in (0u8..).zip(self.seen_per_sweep.iter()) {
+            if count > 0 && best.is_none_or(|(_, most)| count > most) {
+                best = Some((leg, count));
+            }
+        }
+        best.map(|(leg, _)| leg)
+    }
+
+    /// The search goes back to sweep `leg`'s radius.
+    pub(super) fn return_to(&mut self, leg: u8) {
+        self.sweep = leg;
+    }
+
+    /// Where sweep `leg` starts, if the search has it.
+    pub(super) fn sweep_start(&self, leg: u8) -> Option<ArcPoint<f32>> {
+        let (radius, from, _) = self.search.ends(leg)?;
+        Some(self.search_point(radius, from))
+    }
+
+    /// Where sweep `leg` ends, if the search has it.
+    pub(super) fn sweep_end(&self, leg: u8) -> Option<ArcPoint<f32>> {
+        let (radius, _, to) = self.search.ends(leg)?;
+        Some(self.search_point(radius, to))
+    }
+
+    /// Back over `azimuth` (where the marks were seen) on sweep `leg`'s
+    /// radius, within its joint-1 range.
+    pub(super) fn search_return(&self, leg: u8, azimuth: f32) -> Option<ArcPoint<f32>> {
+        let sweep = self.search.leg(leg)?;
+        Some(self.search_point(sweep.radius_m, sweep.within(azimuth)))
     }
 
     /// The flange arc point over `tool` (a grasp-point position), wrist as at the start.

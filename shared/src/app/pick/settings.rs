@@ -6,14 +6,23 @@
 /// Every tunable of the pick, with the defaults the simulator's experiments use.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PickSettings {
-    /// Radius from the base axis and grasp-point height of the sweep that shows
-    /// the marks to the camera before anything is known. The height is the
-    /// cell's travel height: above any disc and part the robot can reach.
-    pub search_radius_m: f32,
-    /// The sweep's grasp-point height (see `search_radius_m`).
+    /// The grasp-point height of the sweeps that show the marks to the camera
+    /// before anything is known: the cell's travel height, which the user
+    /// keeps clear of any disc and part (see `search`).
     pub search_tool_height_m: f32,
-    /// The sweep turns the arm this far either side of its start azimuth.
-    pub search_half_sweep_rad: f32,
+    /// The search sweeps joint 1 over its whole range less this margin at
+    /// each end, rad.
+    pub search_joint1_margin_rad: f32,
+    /// The search's sweeps are this far apart in radius, m: less than the
+    /// width of the camera's view at travel height (a camera that frames the
+    /// 0.9 m disc sees at least 0.6 m across there).
+    pub search_radius_step_m: f32,
+    /// The search's radii keep within this fraction of the arm's stretch.
+    pub search_max_stretch: f32,
+    /// When every sweep has passed and the marks were seen, but fewer times
+    /// than `min_effector_sightings`, the arm goes back over where they were
+    /// seen most and holds there this long for more, s.
+    pub search_dwell_s: f32,
     /// Sightings of the marks needed before the first estimate.
     pub min_effector_sightings: u32,
     /// Grasp-point heights above the part's top at which the marks are shown for
@@ -168,9 +177,11 @@ pub struct PickSettings {
 impl Default for PickSettings {
     fn default() -> Self {
         Self {
-            search_radius_m: 0.65,
             search_tool_height_m: 0.70,
-            search_half_sweep_rad: 2.6,
+            search_joint1_margin_rad: 0.1,
+            search_radius_step_m: 0.2,
+            search_max_stretch: 0.9,
+            search_dwell_s: 4.0,
             min_effector_sightings: 6,
             calibration_heights_m: [0.35, 0.20, 0.08],
             calibration_dwell_s: 0.6,

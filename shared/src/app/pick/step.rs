@@ -9,8 +9,13 @@ use crate::protocol::PickPhase;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Step {
     Start,
+    /// To the start of the search's first sweep.
     SearchApproach,
-    SearchSweep,
+    /// Sweeping joint 1's range at the search's radius `n` (`search`).
+    SearchSweep(u8),
+    /// Out or in to the search's radius `n`, at the end the last sweep reached.
+    SearchShift(u8),
+    /// Back over where the marks were seen, on the radius they were seen from.
     SearchReturn,
     EstimatePreliminary,
     CalibrateMove(u8),
@@ -41,9 +46,10 @@ impl Step {
     pub(super) fn phase(self) -> PickPhase {
         match self {
             Self::Start => PickPhase::Idle,
-            Self::SearchApproach | Self::SearchSweep | Self::SearchReturn => {
-                PickPhase::SearchEffector
-            }
+            Self::SearchApproach
+            | Self::SearchSweep(_)
+            | Self::SearchShift(_)
+            | Self::SearchReturn => PickPhase::SearchEffector,
             Self::CalibrateMove(_) | Self::CalibrateDwell(_) => PickPhase::CalibrateBase,
             Self::EstimatePreliminary | Self::EstimateFinal => PickPhase::Estimating,
             Self::Locate | Self::InterceptAbandoned | Self::Relocate => PickPhase::Locate,
@@ -66,7 +72,8 @@ impl Step {
         matches!(
             self,
             Self::SearchApproach
-                | Self::SearchSweep
+                | Self::SearchSweep(_)
+                | Self::SearchShift(_)
                 | Self::SearchReturn
                 | Self::CalibrateMove(_)
                 | Self::CalibrateDwell(_)

@@ -11,7 +11,8 @@ use super::cell::{Cell, ConfigError};
 use super::estimate::CellEstimate;
 use super::handoff::{JobOutcome, JobRequest, JobResult, JobTicket, VisionNews, WorkItem};
 use super::jobs::{
-    calibration_poses, plan_part_intercept, ConveyorSnapshot, MAX_CALIBRATION_POSES,
+    calibration_poses, part_path_enters_reach, plan_part_intercept, ConveyorSnapshot,
+    MAX_CALIBRATION_POSES,
 };
 use super::motion::Prediction;
 use super::settings::{at_most, PickSettings};
@@ -165,18 +166,25 @@ impl PickWorker {
         if !at_most(rejected, self.settings.max_rejected_fraction) {
             return Err(FaultCause::CalibrationFailed);
         }
-        let poses = if preliminary {
-            calibration_poses(
+        if preliminary {
+            let poses = calibration_poses(
                 &estimate,
                 &self.cell.log_header().camera,
                 start_pose,
                 q_now,
                 &self.settings,
                 &self.model,
-            )
+            );
+            // Nowhere over the disc can the arm show the marks to the camera:
+            // the robot cannot be calibrated against this disc.
+            if poses.is_empty() {
+                return Err(FaultCause::DiscOutOfReach);
+            }
+            Ok((estimate, poses))
+        } else if part_path_enters_reach(&estimate, q_now, &self.model) {
+            Ok((estimate, Vec::new()))
         } else {
-            Vec::new()
-        };
-        Ok((estimate, poses))
+            Err(FaultCause::PartOutOfReach)
+        }
     }
 }
