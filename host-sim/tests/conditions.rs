@@ -61,11 +61,13 @@ fn the_conditions_are_at_their_worst_settings() {
     assert_eq!(all.camera, vision.camera);
     assert_eq!(all.conveyor, disc.conveyor);
     assert_eq!(all.part, part.part);
-    // The gripper and the drives are the default cell's: nothing loosened.
+    // The gripper, the drives and the layouts are the default cell's:
+    // nothing loosened.
     let turning = PickScenarioFile::default_experiment("turning").unwrap();
     for experiment in &file.experiment {
         assert_eq!(experiment.gripper, turning.gripper, "{}", experiment.name);
         assert_eq!(experiment.robot, turning.robot, "{}", experiment.name);
+        assert_eq!(experiment.cell, turning.cell, "{}", experiment.name);
         assert!(!experiment.disc_height_known, "{}", experiment.name);
     }
 }
