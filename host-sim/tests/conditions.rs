@@ -83,13 +83,13 @@ fn the_camera_at_its_worst_still_picks() {
 }
 
 #[test]
-#[ignore = "issue 17, not met yet: 27 of 30 (PartUnreachable, JointOverspeed), docs/pick.md"]
+#[ignore = "issue 17, not met yet (PartUnreachable on the fast disc), docs/pick.md"]
 fn the_fastest_disc_still_picks() {
     assert_picked("disc-fast");
 }
 
 #[test]
-#[ignore = "issue 17, not met yet: 24 of 30, docs/pick.md"]
+#[ignore = "issue 17, not met yet, docs/pick.md"]
 fn every_condition_at_its_worst_at_once_still_picks() {
     assert_picked("all-worst");
 }
