@@ -7,6 +7,18 @@
 //! least-squares solve of [`super::dls`], and an integral term with
 //! anti-windup removes the steady error that model mismatch (unknown payload,
 //! friction) leaves under the paper's pure PD outer loop.
+//!
+//! The friction part of `h` is taken at the joint speeds the reference asks
+//! for, `qd_ref = J^+ Yd_dot`, not at the measured `qd`: `tau = D(q) qdd +
+//! C(q, qd) qd + G(q) + F(qd_ref)`. A joint that the reference moves slowly or
+//! turns round (joint 1 following a part across the disc) has a measured speed
+//! inside the Coulomb law's smoothing width; friction fed forward from it
+//! comes only after the joint has broken away, so the joint sticks, the error
+//! winds up the PD torque until it slips, and it overshoots (stick-slip, the
+//! gripper's speed against the part jumping by 20 mm/s). The reference's speed
+//! has the sign the joint must move in before it moves, and is free of the
+//! encoders' noise, so its Coulomb law can be narrow without hunting: at rest
+//! the reference asks for no speed and no friction torque is fed forward.
 
 use nalgebra::{convert, Isometry3, RealField, Vector3, Vector6};
 
@@ -273,7 +285,9 @@ impl<T: RealField + Copy> TaskSpaceController<T> {
                 ControlStage::JointAccelerationSolve,
             ));
         }
-        let tau_unsaturated = model.inverse_dynamics(configuration, qd, &solution.x);
+        // Friction from the reference's joint speeds (see the module's doc).
+        let tau_unsaturated = model.inverse_dynamics(configuration, qd, &solution.x)
+            + model.friction_torque(&reference_joint_speed);
         if !all_finite(&tau_unsaturated) {
             return Err(ControlError::NonFiniteResult(ControlStage::InverseDynamics));
         }

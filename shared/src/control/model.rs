@@ -3,7 +3,8 @@
 //! The control law is written against this trait rather than against
 //! `Puma560` directly so that it states exactly which model terms Eq 23 uses
 //! (kinematics for the errors, `J` and `Jdot qd` for the acceleration
-//! resolution, one RNEA pass for the torques) and so that the controller's
+//! resolution, one RNEA pass for the torques, the friction law for the
+//! feed-forward) and so that the controller's
 //! model can differ from the plant's (mismatch tests). The per-configuration
 //! work (for the PUMA the six `sin`/`cos` pairs) is done once per step and
 //! shared by kinematics and dynamics, which matters on the M4F.
@@ -32,13 +33,18 @@ pub trait TaskSpaceModel<T: RealField + Copy> {
     fn configuration(&self, q: &Joints<T>) -> Self::Configuration;
     /// Pose, Jacobian and `Jdot qd` of the flange.
     fn task_kinematics(&self, config: &Self::Configuration, qd: &Joints<T>) -> TaskKinematics<T>;
-    /// RNEA with gravity (and the model's armature/friction terms).
+    /// RNEA with gravity and the model's armature term at `(q, qd, qdd)`;
+    /// friction is left out (see [`Self::friction_torque`]): Eq 23 evaluates
+    /// it at the reference's joint speeds, not at the measured ones.
     fn inverse_dynamics(
         &self,
         config: &Self::Configuration,
         qd: &Joints<T>,
         qdd: &Joints<T>,
     ) -> Joints<T>;
+    /// The joint friction the motors must overcome at joint speeds `qd`
+    /// (zeros for a model without friction).
+    fn friction_torque(&self, qd: &Joints<T>) -> Joints<T>;
     /// Torque that holds the arm still at `q`.
     fn gravity_torque(&self, q: &Joints<T>) -> Joints<T>;
     /// Symmetric torque limits `|tau_i| <= limit_i` (N m).

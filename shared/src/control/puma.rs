@@ -46,8 +46,15 @@ impl<T: RealField + Copy> TaskSpaceModel<T> for Puma560<T> {
         }
     }
 
+    /// `inverse_dynamics_with` without its friction term: the rigid body's
+    /// RNEA with gravity plus `G^2 Jm qdd`.
     fn inverse_dynamics(&self, trig: &JointTrig<T>, qd: &Joints<T>, qdd: &Joints<T>) -> Joints<T> {
-        self.inverse_dynamics_with(trig, qd, qdd)
+        self.rigid_inverse_dynamics_with(trig, qd, qdd, &(-self.gravity))
+            + self.armature_inertia().component_mul(qdd)
+    }
+
+    fn friction_torque(&self, qd: &Joints<T>) -> Joints<T> {
+        Puma560::friction_torque(self, qd)
     }
 
     /// `rne(q, 0, 0)`: friction is zero at rest and armature needs `qdd`, so
@@ -85,5 +92,13 @@ mod tests {
         });
         let gravity = TaskSpaceModel::gravity_torque(&with_drive, &q);
         assert!((gravity - with_drive.gravity_torque(&q)).amax() < 1e-12);
+        // The trait's RNEA leaves friction out; with it added back at the
+        // same speeds it is the model's full inverse dynamics.
+        let qdd = Joints::new(1.0, -2.0, 0.5, 3.0, -1.5, 2.5);
+        let rigid =
+            TaskSpaceModel::inverse_dynamics(&with_drive, &with_drive.configuration(&q), &qd, &qdd);
+        let friction = TaskSpaceModel::friction_torque(&with_drive, &qd);
+        assert!(friction.amax() > 1.0, "the drive's friction is on");
+        assert!((rigid + friction - with_drive.inverse_dynamics(&q, &qd, &qdd)).amax() < 1e-9);
     }
 }

@@ -64,13 +64,15 @@ impl PickParts {
     }
 }
 
-/// The width of the controller's Coulomb friction law, rad/s: five counts of
-/// the joint observer's speed (joint 1: 1000 counts per motor turn through a
-/// 62.6 gear is 1e-4 rad a count, 0.01 rad/s over a 10-period window). A
-/// narrower law flips the full Coulomb torque on a one-count change of the
-/// measured speed, and against a plant whose friction is not the table's
-/// the hold then hunts (joint 1 at 0.04 rad/s, +-25 N m).
-const CONTROLLER_COULOMB_WIDTH_RAD_S: f64 = 0.05;
+/// The width of the controller's Coulomb friction law, rad/s. Eq 23 takes
+/// friction at the reference's joint speeds (`J^+ Yd_dot`, see
+/// [`crate::control::computed_torque`]), which carry no encoder noise, so the
+/// law may be as narrow as the plant's: 0.01 rad/s reaches 76 % of the full
+/// Coulomb torque at 0.01 rad/s. (Taken at the measured speeds, a law this
+/// narrow flipped the full Coulomb torque on a one-count change of the speed
+/// and the hold hunted; 0.05 rad/s avoided that but fed forward too little
+/// friction to a slowly moving joint, which then stuck and slipped.)
+const CONTROLLER_COULOMB_WIDTH_RAD_S: f64 = 0.01;
 
 /// The controller's dynamic model for Eq 23 (and for the planner's torque
 /// check): the nominal PUMA 560 with armature and smoothed friction, in `f32`.
