@@ -36,7 +36,7 @@ use shared::protocol::{
 };
 use shared::safety::{
     check_reconfigure, BoardFault, CellState, DeadlineMonitor, DriveInterlock, EncoderMotion,
-    InterlockFault, InterlockOutput, Parking, ParkingInput, ParkingOutput, PeriodInput,
+    InterlockFault, InterlockOutput, ParkState, Parking, ParkingInput, ParkingOutput, PeriodInput,
     REST_SPEED_RAD_S,
 };
 
@@ -480,6 +480,11 @@ pub async fn control_loop(
                 > LINK_TIMEOUT_US
         {
             controller.stop(FaultCause::LinkLost);
+        }
+        if parking.state() != ParkState::Active {
+            // The brakes hold the arm from the period they dropped: Eq 23
+            // no longer moves it (see `PickController::on_brakes`).
+            controller.on_brakes();
         }
         let mut extra: Vec<Message, MAX_TICK_MESSAGES> = Vec::new();
         controller.set_link_frames_rejected(stats::FRAMES_REJECTED.load(Ordering::Relaxed));

@@ -175,6 +175,7 @@ impl PickController {
             part_in_gripper: false,
             speed_window: JointSpeedWindow::new(),
             brake: None,
+            on_brakes: false,
             integral_reset_s: 0.0,
             last_command: None,
             link_frames_rejected: 0,

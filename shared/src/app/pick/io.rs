@@ -155,6 +155,18 @@ impl PickController {
         self.raise(cause);
     }
 
+    /// The board has put the arm on its holding brakes (a parked board,
+    /// `shared::safety::parking`): nothing the controller commands moves it
+    /// any more. Eq 23 must then neither integrate the error the brakes hold
+    /// in place (its integral would wind up) nor feed the joint observer the
+    /// accelerations it commands: an observer that expects the commanded
+    /// motion from a braked arm drifts from the encoders until it refuses
+    /// them (a `JointEncoder` fault after a finished pick). Latched until the
+    /// controller is replaced by a new configuration, as the parking is.
+    pub fn on_brakes(&mut self) {
+        self.on_brakes = true;
+    }
+
     /// A job request could not be handed to the worker (its queue was full):
     /// its result would never come, so stop rather than wait.
     pub fn on_job_lost(&mut self) {

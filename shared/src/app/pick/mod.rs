@@ -37,6 +37,8 @@ mod io;
 mod job_slot;
 pub mod jobs;
 pub mod motion;
+#[cfg(test)]
+mod on_brakes_tests;
 pub mod pairing;
 mod period;
 mod route;
@@ -156,6 +158,8 @@ pub struct PickController {
     integral_reset_s: f32,
     /// Engaged when the task-space stop cannot be trusted; then for good.
     brake: Option<JointBrake>,
+    /// The board's holding brakes hold the arm ([`Self::on_brakes`]).
+    on_brakes: bool,
 
     // The period's clock.
     /// The first sample's time, microseconds.

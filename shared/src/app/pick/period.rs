@@ -164,7 +164,9 @@ impl PickController {
         // friction (stick-slip).
         let settled_since = self.step_started_s.max(self.integral_reset_s);
         self.controller.freeze_integral(
-            self.step == Step::Faulted && self.now_s - settled_since > self.settings.hold_settle_s,
+            self.on_brakes
+                || (self.step == Step::Faulted
+                    && self.now_s - settled_since > self.settings.hold_settle_s),
         );
         let output = self.controller.step_with(
             &self.model,
@@ -192,7 +194,8 @@ impl PickController {
         if output.saturated {
             self.counters.saturated_ticks = self.counters.saturated_ticks.saturating_add(1);
         }
-        self.qdd_commanded = if output.qdd.iter().all(|x| x.is_finite()) {
+        // On the brakes the arm does not follow Eq 23 (see `on_brakes`).
+        self.qdd_commanded = if !self.on_brakes && output.qdd.iter().all(|x| x.is_finite()) {
             output.qdd
         } else {
             JointVector::zeros()
