@@ -83,7 +83,6 @@ fn the_camera_at_its_worst_still_picks() {
 }
 
 #[test]
-#[ignore = "issue 17, not met yet (PartUnreachable on the fast disc), docs/pick.md"]
 fn the_fastest_disc_still_picks() {
     assert_picked("disc-fast");
 }

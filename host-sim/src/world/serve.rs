@@ -4,14 +4,18 @@
 //! A layout can be served when all of these hold (the PUMA 560 gripper
 //! down, the controller's reach margins, joint ranges from
 //! `docs/reference/puma560-model.md`):
-//! 1. the part's path: over at least [`SERVE_ARC_DEG`] of one contiguous arc
-//!    of the circle the part's grasp point runs round as the disc turns, the
+//! 1. the part's path: over at least [`required_arc_deg`] of one contiguous
+//!    arc of the circle the part's grasp point runs round as the disc turns, the
 //!    gripper reaches it at the grasp point and at the hover height above it:
 //!    within 93 % of the arm's stretch (`shared::planning::MAX_STRETCH`), at
 //!    least 0.30 m from the base axis, with joint angles inside every joint's
 //!    range (inverse kinematics from the ready posture turned towards it) and
-//!    well conditioned. 90 degrees is the disc's turn in 3.1 s at 0.5 rad/s:
-//!    the grasp's window (1.9 s) with room to meet the part;
+//!    well conditioned. The arc is the disc's turn during the grasp's window
+//!    (1.9 s) at its top speed (mean speed plus ripple), with
+//!    [`MEET_MARGIN_DEG`] to meet the part, and never under [`SERVE_ARC_DEG`]:
+//!    at the default 0.5 rad/s (5 % ripple) that is 90 degrees, at 1 rad/s
+//!    (10 % ripple) 150. A shorter arc passes before the grasp can close on a
+//!    part it has met (the controller then stops with `PartOutOfReach`);
 //! 2. the camera sees the gripper at the cell's travel height: somewhere over
 //!    the disc the arm reaches at that height, both marks are in view (the
 //!    search looks for them there, knowing nothing yet);
@@ -37,8 +41,18 @@ use shared::robot::{JointVector, Puma560};
 use super::dimensions::DISC_RADIUS_M;
 use super::workcell::Workcell;
 
-/// The contiguous arc of the part's circle the arm must reach, degrees.
+/// The least contiguous arc of the part's circle the arm must reach, degrees.
 pub const SERVE_ARC_DEG: f64 = 90.0;
+/// The arc beyond the disc's turn during the grasp's window, degrees: room
+/// to meet the part (and for the speed's ripple within a window).
+pub const MEET_MARGIN_DEG: f64 = 30.0;
+
+/// The contiguous arc of the part's circle the arm must reach, degrees, for a
+/// disc turning at up to `top_speed_rad_s` (see the module's condition 1).
+pub fn required_arc_deg(top_speed_rad_s: f64, settings: &PickSettings) -> f64 {
+    let window_deg = (top_speed_rad_s.abs() * f64::from(settings.grasp_window_s)).to_degrees();
+    SERVE_ARC_DEG.max(window_deg + MEET_MARGIN_DEG)
+}
 /// Samples of the part's circle (every 2 degrees).
 const CIRCLE_SAMPLES: usize = 180;
 /// Closest a gripper-down grasp point may come to the base axis, m (the
@@ -54,8 +68,9 @@ const VIEW_GRID_M: f64 = 0.05;
 /// Why a layout cannot be served.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Unservable {
-    /// The part's circle is reachable over `arc_deg` at most, less than [`SERVE_ARC_DEG`].
-    PartPathOutOfReach { arc_deg: f64 },
+    /// The part's circle is reachable over `arc_deg` at most, less than the
+    /// `needed_deg` of [`required_arc_deg`].
+    PartPathOutOfReach { arc_deg: f64, needed_deg: f64 },
     /// Nowhere over the disc at travel height does the camera see the marks.
     GripperNotSeenAtTravelHeight,
     /// Nowhere over the disc low down does the camera see the marks.
@@ -65,9 +80,13 @@ pub enum Unservable {
 impl std::fmt::Display for Unservable {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Self::PartPathOutOfReach { arc_deg } => write!(
+            Self::PartPathOutOfReach {
+                arc_deg,
+                needed_deg,
+            } => write!(
                 f,
-                "the part's circle is reachable over {arc_deg:.0} deg, less than {SERVE_ARC_DEG:.0}"
+                "the part's circle is reachable over {arc_deg:.0} deg, less than the \
+                 {needed_deg:.0} deg the disc turns in a grasp"
             ),
             Self::GripperNotSeenAtTravelHeight => write!(
                 f,
@@ -200,11 +219,20 @@ fn gripper_seen_over_disc(workcell: &Workcell, arm: &Arm, tool_z: f64) -> bool {
     })
 }
 
-/// Whether the arm can serve `workcell` (see the module's conditions), or why not.
-pub fn check_serve(workcell: &Workcell, settings: &PickSettings) -> Result<(), Unservable> {
+/// Whether the arm can serve `workcell` with its disc turning at up to
+/// `top_speed_rad_s` (see the module's conditions), or why not.
+pub fn check_serve(
+    workcell: &Workcell,
+    settings: &PickSettings,
+    top_speed_rad_s: f64,
+) -> Result<(), Unservable> {
     let arc_deg = reachable_part_arc_deg(workcell, settings);
-    if arc_deg < SERVE_ARC_DEG {
-        return Err(Unservable::PartPathOutOfReach { arc_deg });
+    let needed_deg = required_arc_deg(top_speed_rad_s, settings);
+    if arc_deg < needed_deg {
+        return Err(Unservable::PartPathOutOfReach {
+            arc_deg,
+            needed_deg,
+        });
     }
     let arm = Arm::new();
     if !gripper_seen_over_disc(workcell, &arm, f64::from(settings.search_tool_height_m)) {
@@ -232,6 +260,16 @@ mod tests {
         assert_eq!(longest_circular_run(&[false, false]), 0);
         assert_eq!(longest_circular_run(&[true, true]), 2);
         assert_eq!(longest_circular_run(&[false, true, true, false, true]), 2);
+    }
+
+    #[test]
+    fn a_faster_disc_needs_a_longer_reachable_arc() {
+        let settings = PickSettings::default();
+        // The default disc (0.5 rad/s, 5 % ripple): the fixed 90 degrees.
+        assert_eq!(required_arc_deg(0.525, &settings), SERVE_ARC_DEG);
+        // 1 rad/s with 10 % ripple: 1.1 rad/s for 1.9 s is 120 degrees.
+        let fast = required_arc_deg(-1.1, &settings);
+        assert!((fast - 149.7).abs() < 0.1, "{fast}");
     }
 
     #[test]

@@ -48,6 +48,9 @@ pub enum PlanError {
     },
     /// No duration up to the maximum meets the part within the limits.
     NoFeasibleIntercept,
+    /// Over a whole turn of the disc the part never stays within reach for
+    /// the grasp's window: at this conveyor speed no intercept ever can.
+    NoGraspWindow,
 }
 
 impl fmt::Display for PlanError {
@@ -55,6 +58,10 @@ impl fmt::Display for PlanError {
         match self {
             Self::NonFinite { what } => write!(f, "non-finite value in {what}"),
             Self::InvalidDuration => write!(f, "segment duration must be positive and finite"),
+            Self::NoGraspWindow => write!(
+                f,
+                "the part stays within reach for less than the grasp's window on every turn"
+            ),
             Self::InvalidLimits { what } => write!(f, "invalid planning limit: {what}"),
             Self::IkDidNotConverge {
                 position_error_m,

@@ -133,10 +133,12 @@ pub(super) fn clear_workcell(
         if !disc_clear_of(&workcell, &drop_off_base) {
             continue;
         }
+        let conveyor = &experiment.conveyor;
+        let top_speed_rad_s = conveyor.speed_rad_s.abs() * (1.0 + conveyor.ripple_fraction);
         let keep = match experiment.cell.layouts {
             LayoutKind::Any => true,
-            LayoutKind::Servable => check_serve(&workcell, &settings).is_ok(),
-            LayoutKind::Unservable => check_serve(&workcell, &settings).is_err(),
+            LayoutKind::Servable => check_serve(&workcell, &settings, top_speed_rad_s).is_ok(),
+            LayoutKind::Unservable => check_serve(&workcell, &settings, top_speed_rad_s).is_err(),
         };
         if keep {
             return Ok(workcell);

@@ -4,6 +4,8 @@
 //! The control loop requests them and applies their results after a fixed delay
 //! (see `PickSettings::estimate_budget_s`), holding its reference meanwhile.
 
+use core::cell::Cell;
+
 use heapless::Vec;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
@@ -147,8 +149,31 @@ fn reachable_at(
     }
     let pose = flange_pose(&grasp.position, grasp.yaw);
     within_reach(robot, &pose.translation.vector)
-        && solve_ik(robot, &pose, q_seed, &IkConfig::default())
-            .is_ok_and(|q| well_conditioned(robot, &q))
+        && solve_ik(
+            robot,
+            &pose,
+            &seed_towards(q_seed, &grasp.position, robot),
+            &IkConfig::default(),
+        )
+        .is_ok_and(|q| well_conditioned(robot, &q))
+}
+
+/// `q_seed` with joint 1 turned by the azimuth from its flange to `target`
+/// (base frame): the inverse kinematics then need not swing the waist round
+/// from afar, from where it may not converge. On a fast disc the grasp's
+/// window spans a wide arc (at 1 rad/s, 109 degrees in 1.9 s): seeded with
+/// the arm's start alone, the far end of that arc failed to converge and
+/// no window was ever admitted.
+fn seed_towards(
+    q_seed: &JointVector<f32>,
+    target: &Vector3<f32>,
+    robot: &Puma560<f32>,
+) -> JointVector<f32> {
+    let flange = robot.forward_kinematics(q_seed).translation.vector;
+    let mut seed = *q_seed;
+    seed.x +=
+        crate::angle::wrap_pi(libm::atan2f(target.y, target.x) - libm::atan2f(flange.y, flange.x));
+    seed
 }
 
 /// Conveyor angles at which [`part_path_enters_reach`] tries the part: every 10 degrees.
@@ -165,17 +190,10 @@ pub fn part_path_enters_reach(
     q_seed: &JointVector<f32>,
     robot: &Puma560<f32>,
 ) -> bool {
-    // Each try starts from `q_seed` with joint 1 turned by the azimuth from
-    // the arm's flange to the part, so the inverse kinematics need not swing
-    // the waist round from afar (it may not converge from there).
-    let flange = robot.forward_kinematics(q_seed).translation.vector;
-    let flange_azimuth = libm::atan2f(flange.y, flange.x);
+    // Each try starts from `q_seed` turned towards the part (`seed_towards`).
     (0..PART_PATH_SAMPLES).any(|k| {
         let theta = f32::from(k) * core::f32::consts::TAU / f32::from(PART_PATH_SAMPLES);
-        let part = estimate.grasp_point(theta, 0.0, 0.0).position;
-        let mut seed = *q_seed;
-        seed.x += crate::angle::wrap_pi(libm::atan2f(part.y, part.x) - flange_azimuth);
-        reachable_at(estimate, theta, &seed, robot)
+        reachable_at(estimate, theta, q_seed, robot)
     })
 }
 
@@ -202,17 +220,37 @@ pub fn plan_part_intercept(
         )
     };
     let window = settings.grasp_window_s;
+    // Whether any duration of the scan was admissible (see below).
+    let any_admissible = Cell::new(false);
     let admissible = |d: f32| {
-        (0..=3).all(|k| {
+        let ok = (0..=3).all(|k| {
             let tau = d + window * k as f32 / 3.0;
             reachable_at(estimate, theta_after(tau), q_start, robot)
-        })
+        });
+        if ok {
+            any_admissible.set(true);
+        }
+        ok
     };
     let limits = InterceptLimits {
         max_duration_s: 14.0,
         duration_step_s: 0.2,
         ..InterceptLimits::default()
     };
-    let plan = plan_intercept_where(start, target_after, admissible, &limits, robot, q_start)?;
-    Ok((plan, prediction))
+    match plan_intercept_where(start, target_after, admissible, &limits, robot, q_start) {
+        Ok(plan) => Ok((plan, prediction)),
+        // The scan saw the part go round a whole turn and never found it
+        // within reach for the grasp's window: the part's reachable arc is
+        // shorter than the disc turns in that window (a fast disc, a far or
+        // low part). Waiting for another turn cannot help: say so now.
+        Err(PlanError::NoFeasibleIntercept)
+            if !any_admissible.get()
+                && libm::fabsf(prediction.omega)
+                    * (limits.max_duration_s - limits.min_duration_s)
+                    >= core::f32::consts::TAU =>
+        {
+            Err(PlanError::NoGraspWindow)
+        }
+        Err(e) => Err(e),
+    }
 }

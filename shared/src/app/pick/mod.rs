@@ -642,6 +642,10 @@ impl PickController {
                 self.step_started_s = self.now_s;
                 return;
             }
+            Some(JobOutcome::Plan(Err(PlanError::NoGraspWindow))) => {
+                self.raise(FaultCause::PartOutOfReach);
+                return;
+            }
             Some(JobOutcome::Plan(Err(_))) => {
                 self.next_plan_attempt_s = self.now_s + 0.5;
             }
@@ -654,7 +658,15 @@ impl PickController {
         let Some(state) = self.conveyor_state else {
             return;
         };
-        let steady = state.alpha.abs() <= self.settings.steady_alpha_rad_s2;
+        // Steady: no faster change than a speed ripple of the conveyor's own
+        // drive, which scales with its speed (10 % at 0.3 Hz is 0.19 omega
+        // rad/s^2: at 1 rad/s a fixed 0.2 rad/s^2 flapped on the ripple's
+        // peaks and locating could wait out its timeout).
+        let steady = state.alpha.abs()
+            <= self
+                .settings
+                .steady_alpha_rad_s2
+                .max(self.settings.steady_alpha_per_omega * state.omega.abs());
         let Some(estimate) = self.estimate else {
             // Locate is only entered with an estimate; never plan without one.
             self.raise(FaultCause::CalibrationFailed);

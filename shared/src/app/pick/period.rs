@@ -300,8 +300,20 @@ impl PickController {
             }
         }
         let reach = Supervisor::reach(self.step, &self.reference.position, &self.model, &settings);
-        if let Some(cause) = reach {
-            self.raise(cause);
+        match reach {
+            // Still on its way to the part: the intercept's correction
+            // followed a part the conveyor's ripple carried elsewhere than
+            // the plan's prediction, towards the edge of reach. Abandon it
+            // and plan again from rest (up to `max_intercept_attempts`), as
+            // for a part that departed from the plan.
+            Some(_)
+                if self.step == Step::Intercept
+                    && self.intercept_attempts < self.settings.max_intercept_attempts =>
+            {
+                self.enter(Step::InterceptAbandoned);
+            }
+            Some(cause) => self.raise(cause),
+            None => {}
         }
         self.check_intercept(part);
         let floor = self.safe_floor_z();

@@ -58,6 +58,9 @@ pub struct PickSettings {
     pub grasp_window_s: f32,
     /// The conveyor counts as steady (stopped or turning evenly) below this |alpha|.
     pub steady_alpha_rad_s2: f32,
+    /// ... or below this fraction of its speed |omega| (1/s), whichever is
+    /// larger: a drive's speed ripple grows with its speed.
+    pub steady_alpha_per_omega: f32,
     /// Most time spent waiting for a steady conveyor and a feasible intercept.
     pub locate_timeout_s: f32,
     /// Simulated time allowed for a background estimate or plan before its
@@ -198,6 +201,7 @@ impl Default for PickSettings {
             release_s: 0.4,
             grasp_window_s: 1.9,
             steady_alpha_rad_s2: 0.2,
+            steady_alpha_per_omega: 0.3,
             locate_timeout_s: 40.0,
             estimate_budget_s: 1.0,
             plan_budget_s: 0.25,
