@@ -11,6 +11,7 @@
 
 pub mod conveyor;
 pub mod encoder;
+pub mod mean_speed;
 pub mod part_motion;
 pub mod trigger;
 
@@ -19,5 +20,6 @@ mod error;
 pub use conveyor::{ConveyorFilter, ConveyorState};
 pub use encoder::{CounterWidth, EncoderUnwrapper};
 pub use error::FusionError;
+pub use mean_speed::ConveyorMeanSpeed;
 pub use part_motion::{part_motion_in_base, PartMotion};
 pub use trigger::{LatchedSample, TriggerLatch, Triggered};

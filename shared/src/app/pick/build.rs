@@ -22,7 +22,7 @@ use super::{PickController, PickCounters};
 use crate::app::joint_observer::JointObserver;
 use crate::app::joint_speed::JointSpeedWindow;
 use crate::control::{ControllerConfig, TaskSpaceController};
-use crate::fusion::ConveyorFilter;
+use crate::fusion::{ConveyorFilter, ConveyorMeanSpeed};
 use crate::planning::TaskState;
 use crate::protocol::{CellConfig, GripperCommand};
 use crate::robot::{DriveOptions, JointVector, Puma560};
@@ -140,6 +140,7 @@ impl PickController {
             model,
             controller,
             observer: JointObserver::new(150.0, 0.05),
+            conveyor_mean: ConveyorMeanSpeed::new(conveyor.rad_per_count()),
             conveyor,
             conveyor_state: None,
             outbox: Deque::new(),

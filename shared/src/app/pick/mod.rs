@@ -79,7 +79,7 @@ use super::joint_speed::JointSpeedWindow;
 use super::tool::TOOL_LENGTH_M;
 use crate::calibration::SelfCalibrator;
 use crate::control::TaskSpaceController;
-use crate::fusion::{ConveyorFilter, ConveyorState};
+use crate::fusion::{ConveyorFilter, ConveyorMeanSpeed, ConveyorState};
 use crate::planning::{ArcPoint, PlanError, TaskState};
 use crate::protocol::{ActuatorCommand, FaultCause, GripperCommand};
 use crate::robot::{JointVector, Puma560};
@@ -180,6 +180,9 @@ pub struct PickController {
     conveyor: ConveyorFilter<f32>,
     /// The filter's last state.
     conveyor_state: Option<ConveyorState<f32>>,
+    /// The conveyor's mean speed over the last seconds: the intercept's
+    /// prediction (see [`ConveyorMeanSpeed`]).
+    conveyor_mean: ConveyorMeanSpeed,
     /// The flange's position measured through the joint encoders.
     flange_measured: Vector3<f32>,
     /// The grasp point measured through the joint encoders.
@@ -617,6 +620,23 @@ impl PickController {
         }
     }
 
+    /// The speed the intercept predicts the part with: the conveyor's mean
+    /// over the last seconds, which a speed ripple leaves alone, unless the
+    /// present speed `omega_now` is further from it than an intercept
+    /// tolerates (`Supervisor::intercept_departed`): then the disc changed
+    /// speed and the mean still lags it.
+    fn prediction_speed(&self, omega_now: f32) -> f32 {
+        let tolerance = |mean: f32| {
+            self.settings
+                .max_conveyor_speed_change_rad_s
+                .max(self.settings.max_conveyor_speed_change_fraction * libm::fabsf(mean))
+        };
+        self.conveyor_mean
+            .mean_rad_s()
+            .filter(|mean| libm::fabsf(omega_now - mean) <= tolerance(*mean))
+            .unwrap_or(omega_now)
+    }
+
     /// Waits for a steady conveyor, asks for an intercept, and starts it.
     fn locate(&mut self, in_step: f32) {
         let late_by_s = self.jobs.ready_late_by_s(self.now_s);
@@ -679,7 +699,7 @@ impl PickController {
                 q_start: self.observer.q(),
                 conveyor: ConveyorSnapshot {
                     theta: state.theta_wrapped,
-                    omega: state.omega,
+                    omega: self.prediction_speed(state.omega),
                     lead_s: self.plan_lead_s,
                 },
                 estimate,

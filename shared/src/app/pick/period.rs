@@ -62,7 +62,11 @@ impl PickController {
                 .update(&q_measured, &JointVector::zeros(), dt_s);
         }
         match self.conveyor.update(sample.conveyor_counts, sample.time_us) {
-            Ok(state) => self.conveyor_state = Some(state),
+            Ok(state) => {
+                self.conveyor_state = Some(state);
+                self.conveyor_mean
+                    .push(sample.time_us, self.conveyor.total_counts());
+            }
             Err(_) => self.raise(FaultCause::ConveyorEncoder),
         }
         let encoder_speed = self.speed_window.push(&q_measured, sample.time_us);
