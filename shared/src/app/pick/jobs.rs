@@ -10,7 +10,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use super::estimate::CellEstimate;
 use super::motion::{flange_over, Prediction};
 use super::settings::PickSettings;
-use super::window::{grasp_window_holds, inside_with_margin};
+use super::window::{grasp_window_holds, inside_with_margin, WINDOW_JOINT_MARGIN_RAD};
 use crate::app::tool::{effector_marks_base, TOOL_LENGTH_M};
 use crate::observation::CameraIntrinsics;
 use crate::planning::{
@@ -224,6 +224,7 @@ pub fn plan_part_intercept(
     let limits = InterceptLimits {
         max_duration_s: 14.0,
         duration_step_s: 0.2,
+        joint_position_margin_rad: WINDOW_JOINT_MARGIN_RAD,
         ..InterceptLimits::default()
     };
     let plan = plan_intercept_where(start, target_after, admissible, &limits, robot, q_start)?;

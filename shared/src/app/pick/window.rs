@@ -172,7 +172,19 @@ pub fn grasp_window_holds(
     };
     let shortest = settings.track_settle_s;
     let longest = settings.track_window_s.max(shortest);
-    // The longest track first: the part goes furthest in it.
+    // First the end of the longest course's lift alone (one inverse
+    // kinematics): where the part goes furthest, and where most windows that
+    // fail, fail; then both courses sample by sample.
+    let lift_at_s =
+        longest + settings.descend_s + settings.grasp_settle_s + settings.grasp_close_s;
+    let lift_start = follow_state(&part_at, tau_end_s, lift_at_s, longest, settings);
+    let lift_end = match route::lift(&lift_start, settings, 0.0) {
+        Ok(Motion::Quintic { path, .. }) => path.sample(path.duration()),
+        _ => return false,
+    };
+    if check_state(&lift_end, q_seed, robot).is_none() {
+        return false;
+    }
     course_holds(&part_at, tau_end_s, longest, q_seed, settings, robot)
         && (longest - shortest <= 1e-3
             || course_holds(&part_at, tau_end_s, shortest, q_seed, settings, robot))
