@@ -22,9 +22,7 @@ use super::motion::{flange_over, height_profile, Motion, Prediction};
 use super::route;
 use super::settings::PickSettings;
 use crate::app::pick::jobs::MIN_RADIUS_FROM_BASE_AXIS_M;
-use crate::planning::{
-    solve_ik, well_conditioned, within_reach, IkConfig, TaskState,
-};
+use crate::planning::{solve_ik, well_conditioned, within_reach, IkConfig, TaskState};
 use crate::robot::{JointVector, Puma560};
 
 /// How far inside its range every joint stays through the grasp window, rad
@@ -175,8 +173,7 @@ pub fn grasp_window_holds(
     // First the end of the longest course's lift alone (one inverse
     // kinematics): where the part goes furthest, and where most windows that
     // fail, fail; then both courses sample by sample.
-    let lift_at_s =
-        longest + settings.descend_s + settings.grasp_settle_s + settings.grasp_close_s;
+    let lift_at_s = longest + settings.descend_s + settings.grasp_settle_s + settings.grasp_close_s;
     let lift_start = follow_state(&part_at, tau_end_s, lift_at_s, longest, settings);
     let lift_end = match route::lift(&lift_start, settings, 0.0) {
         Ok(Motion::Quintic { path, .. }) => path.sample(path.duration()),
