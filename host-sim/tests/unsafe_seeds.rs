@@ -1,11 +1,12 @@
-//! The three faulty picks that broke a safety invariant on seeds other than
-//! the campaign's default (issue 18), replayed exactly as
-//! `host-sim faults --seed S --trial K` replays them. Each failed on the code
-//! before the fix; each names the invariant it guards.
+//! The faulty picks that broke a safety invariant (issues 17 and 18),
+//! replayed exactly as `host-sim faults --seed S --trial K` (or `host-sim
+//! run --experiment turning --seed N` for a Monte Carlo trial) replays them.
+//! Each failed on the code before its fix; each names the invariant it guards.
 
 use host_sim::pick::faults::{run_faulty, run_trial, FaultKind, FaultTrial, STRIKE_CLEARANCE_M};
 use host_sim::pick::montecarlo::trial_seed;
 use host_sim::pick::record::PickResult;
+use host_sim::pick::runner::run_pick_in_process;
 use host_sim::scenario::pick::{MissedCounts, PickExperiment, PickScenarioFile};
 use shared::protocol::PickPhase;
 
@@ -101,4 +102,74 @@ fn a_camera_bumped_during_the_search_never_sends_the_gripper_into_the_disc() {
     let struck = t.min_tool_clearance_mm < STRIKE_CLEARANCE_M * 1e3;
     assert!(!struck, "{} mm", t.min_tool_clearance_mm);
     assert!(t.stop_cause.is_some() || t.success, "{}", t.result);
+}
+
+/// How far inside its range every joint must stay in the wide layouts' tests
+/// below, deg: the grasp window, the intercept and the calibration poses keep
+/// 4 deg (`shared::app::pick::window::WINDOW_JOINT_MARGIN_RAD`); the rest is
+/// Eq 23's tracking error.
+const WIDE_LAYOUT_JOINT_MARGIN_DEG: f64 = 2.0;
+
+/// The disc behind the robot, no fault (seed 1, trial 364): the intercept's
+/// grasp window checked the part's reach at four instants only, and the
+/// lift, carried on with the part, took joint 1 to -162.2 deg (its range ends
+/// at -160: the shoulder's offset puts joint 1 some 14 deg past the part's
+/// azimuth). Now the plan commits only to a window whose ride, grasp and lift
+/// keep every joint 4 deg inside its range.
+#[test]
+fn a_part_behind_the_robot_is_lifted_within_joint_1s_range() {
+    let t = replay(1, 364, FaultKind::None);
+    assert!(t.success, "{}", t.result);
+    assert!(
+        t.safety.joint_limit_margin_deg >= WIDE_LAYOUT_JOINT_MARGIN_DEG,
+        "{} deg",
+        t.safety.joint_limit_margin_deg
+    );
+}
+
+/// The disc behind the robot, stopping after the calibration (seed 1, trial
+/// 386): a calibration pose solved onto joint 1's stop took it 0.01 deg past.
+/// The calibration poses now keep the same margin as the grasp window.
+#[test]
+fn a_calibration_pose_behind_the_robot_keeps_off_joint_1s_stop() {
+    let t = replay(1, 386, FaultKind::ConveyorStops);
+    assert!(t.success || t.stop_cause.is_some(), "{}", t.result);
+    assert!(
+        t.safety.joint_limit_margin_deg >= WIDE_LAYOUT_JOINT_MARGIN_DEG,
+        "{} deg",
+        t.safety.joint_limit_margin_deg
+    );
+}
+
+/// Calibration poses behind the robot (seed 25639, trial 36): their wrist yaw
+/// was set from the azimuth in (-180, 180] deg while the arc took the
+/// azimuth the other way round, so joint 6 turned a whole turn, 87 deg past
+/// its stop, and the slow arcs ran the cell out of time in `Locate` (no
+/// stop). The yaw now turns with the azimuth.
+#[test]
+fn a_calibration_pose_behind_the_robot_does_not_turn_the_wrist_round() {
+    let t = replay(25639, 36, FaultKind::ConveyorStops);
+    assert!(t.success || t.stop_cause.is_some(), "{}", t.result);
+    assert!(
+        t.safety.joint_limit_margin_deg >= WIDE_LAYOUT_JOINT_MARGIN_DEG,
+        "{} deg",
+        t.safety.joint_limit_margin_deg
+    );
+}
+
+/// Monte Carlo seed 1, trial 876 (`host-sim run --experiment turning --seed
+/// 1000876`): the disc 0.93 m out; lifting the part near full stretch drove
+/// joint 3 to 1.23 times its speed limit before the supervisor's
+/// `JointOverspeed` stop. The grasp window now holds the lift to 0.7 of the
+/// joint speed limits.
+#[test]
+fn a_lift_near_full_stretch_stays_within_the_joint_speed_limits() {
+    let run = run_pick_in_process(&turning(), trial_seed(1, 876)).unwrap();
+    assert_eq!(run.result, PickResult::Success);
+    assert!(run.safety.speed_ratio <= 0.9, "{}", run.safety.speed_ratio);
+    assert!(
+        run.safety.joint_limit_margin_deg >= WIDE_LAYOUT_JOINT_MARGIN_DEG,
+        "{} deg",
+        run.safety.joint_limit_margin_deg
+    );
 }

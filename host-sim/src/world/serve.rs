@@ -47,10 +47,26 @@ pub const SERVE_ARC_DEG: f64 = 90.0;
 /// to meet the part (and for the speed's ripple within a window).
 pub const MEET_MARGIN_DEG: f64 = 30.0;
 
+/// The lift's first part that the grasp's window counts, s: the part clears
+/// the disc's surface.
+const LIFT_CLEAR_S: f64 = 0.45;
+
+/// The grasp's window, s: from meeting the part at the hover height until it
+/// is off the disc (track, descend, settle, close and the lift's start; 1.9 s
+/// with the default settings).
+pub fn grasp_window_s(settings: &PickSettings) -> f64 {
+    f64::from(
+        settings.track_settle_s
+            + settings.descend_s
+            + settings.grasp_settle_s
+            + settings.grasp_close_s,
+    ) + LIFT_CLEAR_S
+}
+
 /// The contiguous arc of the part's circle the arm must reach, degrees, for a
 /// disc turning at up to `top_speed_rad_s` (see the module's condition 1).
 pub fn required_arc_deg(top_speed_rad_s: f64, settings: &PickSettings) -> f64 {
-    let window_deg = (top_speed_rad_s.abs() * f64::from(settings.grasp_window_s)).to_degrees();
+    let window_deg = (top_speed_rad_s.abs() * grasp_window_s(settings)).to_degrees();
     SERVE_ARC_DEG.max(window_deg + MEET_MARGIN_DEG)
 }
 /// Samples of the part's circle (every 2 degrees).

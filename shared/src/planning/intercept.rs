@@ -16,7 +16,7 @@ use nalgebra::{
 };
 
 use super::grasp_pose::{gripper_down_rotation, nearest_equivalent_yaw};
-use super::path::{check_joint_limits, sample_times, TaskPath};
+use super::path::{check_joint_limits, check_joint_limits_with_margin, sample_times, TaskPath};
 use super::{PlanError, Quintic};
 use crate::robot::{JointVector, Puma560};
 
@@ -105,6 +105,9 @@ pub struct InterceptLimits<T> {
     /// Fraction of the joint speed and torque limits a plan may use (room for
     /// the feedback terms of Eq 23).
     pub joint_limit_fraction: T,
+    /// How far inside its range every joint stays along the plan, rad (or no
+    /// nearer its stop than at the start, where it starts within this).
+    pub joint_position_margin_rad: T,
 }
 
 impl<T: RealField + Copy> Default for InterceptLimits<T> {
@@ -119,6 +122,7 @@ impl<T: RealField + Copy> Default for InterceptLimits<T> {
             samples: 24,
             yaw_symmetry_rad: T::pi(),
             joint_limit_fraction: convert(0.7),
+            joint_position_margin_rad: T::zero(),
         }
     }
 }
@@ -200,6 +204,25 @@ impl<T: RealField + Copy> InterceptPlan<T> {
     ) -> Result<JointVector<T>, PlanError> {
         check_joint_limits(self, robot, q_start, samples, fraction)
     }
+
+    /// Proves the path in joint space from `q_start` within `limits`: its
+    /// samples, joint speed and torque fraction and joint position margin
+    /// (see [`check_joint_limits_with_margin`]).
+    pub fn check_within(
+        &self,
+        robot: &Puma560<T>,
+        q_start: &JointVector<T>,
+        limits: &InterceptLimits<T>,
+    ) -> Result<JointVector<T>, PlanError> {
+        check_joint_limits_with_margin(
+            self,
+            robot,
+            q_start,
+            limits.samples,
+            limits.joint_limit_fraction,
+            limits.joint_position_margin_rad,
+        )
+    }
 }
 
 impl<T: RealField + Copy> TaskPath<T> for InterceptPlan<T> {
@@ -258,11 +281,7 @@ pub fn plan_intercept_where<T: RealField + Copy>(
             continue;
         }
         let plan = candidate(d)?;
-        if plan.within_task_limits(limits)
-            && plan
-                .check_joint_limits(robot, q_start, limits.samples, limits.joint_limit_fraction)
-                .is_ok()
-        {
+        if plan.within_task_limits(limits) && plan.check_within(robot, q_start, limits).is_ok() {
             return Ok(refine(
                 previous_failed,
                 plan,
@@ -324,14 +343,7 @@ fn refine<T: RealField + Copy>(
         match candidate(mid) {
             Ok(plan)
                 if plan.within_task_limits(limits)
-                    && plan
-                        .check_joint_limits(
-                            robot,
-                            q_start,
-                            limits.samples,
-                            limits.joint_limit_fraction,
-                        )
-                        .is_ok() =>
+                    && plan.check_within(robot, q_start, limits).is_ok() =>
             {
                 best = plan;
                 hi = mid;

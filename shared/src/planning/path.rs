@@ -87,7 +87,28 @@ pub fn check_joint_limits<T: RealField + Copy>(
     samples: usize,
     fraction: T,
 ) -> Result<JointVector<T>, PlanError> {
+    check_joint_limits_with_margin(path, robot, q_start, samples, fraction, T::zero())
+}
+
+/// [`check_joint_limits`], every joint also kept `position_margin` inside its
+/// range (or, where `q_start` already lies within the margin, no nearer its
+/// stop than at the start). The inverse kinematics clamp to the range, so
+/// without a margin a path onto a joint's stop would pass.
+pub fn check_joint_limits_with_margin<T: RealField + Copy>(
+    path: &impl TaskPath<T>,
+    robot: &Puma560<T>,
+    q_start: &JointVector<T>,
+    samples: usize,
+    fraction: T,
+    position_margin: T,
+) -> Result<JointVector<T>, PlanError> {
     let limits = robot.joint_limits();
+    let lowest = limits
+        .position_min
+        .zip_map(q_start, |lo, start| (lo + position_margin).min(start));
+    let highest = limits
+        .position_max
+        .zip_map(q_start, |hi, start| (hi - position_margin).max(start));
     let ik = IkConfig::default();
     let mut q = *q_start;
     let mut previous_sign = None;
@@ -100,6 +121,13 @@ pub fn check_joint_limits<T: RealField + Copy>(
         q = solve_ik(robot, &state.pose(), &q, &ik)?;
         if !well_conditioned(robot, &q) {
             return Err(PlanError::Singular { time_s });
+        }
+        if let Some(joint) = q
+            .iter()
+            .zip(lowest.iter().zip(highest.iter()))
+            .position(|(x, (lo, hi))| !(*x >= *lo && *x <= *hi))
+        {
+            return Err(PlanError::JointPositionLimit { joint });
         }
         let jacobian = robot.jacobian(&q);
         // det J changes sign only through a singularity: two well-conditioned

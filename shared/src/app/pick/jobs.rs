@@ -12,6 +12,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use super::estimate::CellEstimate;
 use super::motion::{flange_over, Prediction};
 use super::settings::PickSettings;
+use super::window::{grasp_window_holds, inside_with_margin, WINDOW_JOINT_MARGIN_RAD};
 use crate::app::tool::{effector_marks_base, TOOL_LENGTH_M};
 use crate::observation::CameraIntrinsics;
 use crate::planning::{
@@ -103,7 +104,9 @@ pub fn calibration_poses(
                 let Ok(solution) = solve_ik(robot, &pose, &q, &ik) else {
                     continue;
                 };
-                if !well_conditioned(robot, &solution) {
+                // On a joint's stop the arcs between the poses would drive it
+                // past: keep the window's margin.
+                if !well_conditioned(robot, &solution) || !inside_with_margin(robot, &solution) {
                     continue;
                 }
                 q = solution;
@@ -198,8 +201,14 @@ pub fn part_path_enters_reach(
 }
 
 /// The earliest intercept of the part's hover point from `start` (at rest, joint
-/// angles `q_start`), among those after which the part stays reachable for
-/// `grasp_window_s`. The part's future comes from Eq 1 at constant conveyor speed.
+/// angles `q_start`), among those whose grasp window holds: riding with the
+/// part, descending, grasping and lifting it keep every joint inside its
+/// range with margin and within its speed limits, the part moving with the
+/// disc all the while ([`grasp_window_holds`]). The part's future comes from
+/// Eq 1 at constant conveyor speed. Where no window holds within the scan,
+/// no intercept is planned (the pick waits and plans again, or stops with
+/// `PartUnreachable`): never one whose grasp or lift drives a joint onto its
+/// stop.
 pub fn plan_part_intercept(
     start: &TaskState<f32>,
     q_start: &JointVector<f32>,
@@ -219,14 +228,18 @@ pub fn plan_part_intercept(
             settings.hover_height_m,
         )
     };
-    let window = settings.grasp_window_s;
+    // The window's inverse kinematics start from the arm's joints with
+    // joint 1 turned by the azimuth from the flange to the part's hover
+    // point, so they need not swing the waist round from afar.
+    let flange_azimuth = libm::atan2f(start.position.y, start.position.x);
     // Whether any duration of the scan was admissible (see below).
     let any_admissible = Cell::new(false);
     let admissible = |d: f32| {
-        let ok = (0..=3).all(|k| {
-            let tau = d + window * k as f32 / 3.0;
-            reachable_at(estimate, theta_after(tau), q_start, robot)
-        });
+        let target = target_after(d).position;
+        let mut seed = *q_start;
+        seed.x += crate::angle::wrap_pi(libm::atan2f(target.y, target.x) - flange_azimuth);
+        let ok = reachable_at(estimate, theta_after(d), &seed, robot)
+            && grasp_window_holds(estimate, &prediction, d, &seed, settings, robot);
         if ok {
             any_admissible.set(true);
         }
@@ -235,6 +248,7 @@ pub fn plan_part_intercept(
     let limits = InterceptLimits {
         max_duration_s: 14.0,
         duration_step_s: 0.2,
+        joint_position_margin_rad: WINDOW_JOINT_MARGIN_RAD,
         ..InterceptLimits::default()
     };
     match plan_intercept_where(start, target_after, admissible, &limits, robot, q_start) {

@@ -52,6 +52,7 @@ mod telemetry;
 #[cfg(test)]
 mod trigger_due_tests;
 pub mod view_monitor;
+pub mod window;
 pub mod worker;
 
 use heapless::{Deque, Vec};
@@ -409,7 +410,7 @@ impl PickController {
                     self.enter(Step::CalibrateMove(i.saturating_add(1)));
                     return;
                 }
-                Some(target) => self.arc_to(self.route.near_start(target)),
+                Some(target) => self.arc_to(self.route.near_start_with_wrist(target)),
                 None => {
                     self.enter(Step::EstimateFinal);
                     return;
@@ -546,8 +547,14 @@ impl PickController {
                 .norm();
                 if in_step >= settings.track_settle_s && error <= settings.track_tolerance_m {
                     self.enter(Step::Descend);
-                } else if in_step >= settings.track_timeout_s {
-                    self.raise(FaultCause::TrackingError);
+                } else if in_step >= settings.track_window_s {
+                    // Not settled within the track the plan's grasp window
+                    // allowed for: the part is leaving the checked window.
+                    if self.intercept_attempts >= settings.max_intercept_attempts {
+                        self.raise(FaultCause::TrackingError);
+                    } else {
+                        self.enter(Step::InterceptAbandoned);
+                    }
                 }
             }
             Step::Descend if in_step >= settings.descend_s => self.enter(Step::GraspSettle),

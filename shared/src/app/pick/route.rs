@@ -97,6 +97,17 @@ impl Route {
         target
     }
 
+    /// `target`, whose wrist yaw was set from its azimuth as computed in
+    /// `(-pi, pi]` ([`yaw_at_azimuth`]), with its azimuth on the start's side
+    /// and the yaw turned by the same whole turns: otherwise a pose behind the
+    /// robot asks the wrist (joint 6) for a whole turn it does not have.
+    pub(super) fn near_start_with_wrist(&self, mut target: ArcPoint<f32>) -> ArcPoint<f32> {
+        let azimuth = self.azimuth_near_start(target.azimuth_rad);
+        target.yaw_rad += azimuth - target.azimuth_rad;
+        target.azimuth_rad = azimuth;
+        target
+    }
+
     /// An arc from `from` (at rest) to `target`, starting at `now_s`.
     pub(super) fn arc(
         &self,

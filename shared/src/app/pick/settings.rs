@@ -34,12 +34,10 @@ pub struct PickSettings {
     /// Hover height above the grasp point while intercepting and tracking.
     pub hover_height_m: f32,
     /// How long tracking must hold the gripper within `track_tolerance_m`
-    /// before descending, and the most time it may take.
+    /// before descending (the most time it may take: `track_window_s`).
     pub track_settle_s: f32,
     /// How close tracking must hold the gripper (see `track_settle_s`).
     pub track_tolerance_m: f32,
-    /// The most time tracking may take (see `track_settle_s`).
-    pub track_timeout_s: f32,
     /// The descent from hover height to the grasp point, s.
     pub descend_s: f32,
     /// How long the gripper settles at the grasp point before closing, s.
@@ -54,8 +52,12 @@ pub struct PickSettings {
     pub drop_hover_m: f32,
     /// How long the gripper stays open over the drop-off (see `drop_hover_m`).
     pub release_s: f32,
-    /// The part must stay reachable this long after the intercept (track, descend, grasp, lift).
-    pub grasp_window_s: f32,
+    /// The longest track the intercept's plan allows for: its grasp window
+    /// (`window`) is checked for a track from `track_settle_s` to this long.
+    /// A track not settled by then is abandoned (the part would leave the
+    /// window the plan checked) and planned again, or stops with
+    /// `TrackingError` after `max_intercept_attempts`.
+    pub track_window_s: f32,
     /// The conveyor counts as steady (stopped or turning evenly) below this |alpha|.
     pub steady_alpha_rad_s2: f32,
     /// ... or below this fraction of its speed |omega| (1/s), whichever is
@@ -191,7 +193,6 @@ impl Default for PickSettings {
             hover_height_m: 0.06,
             track_settle_s: 0.3,
             track_tolerance_m: 0.003,
-            track_timeout_s: 3.0,
             descend_s: 0.7,
             grasp_settle_s: 0.15,
             grasp_close_s: 0.3,
@@ -199,7 +200,7 @@ impl Default for PickSettings {
             lift_s: 1.2,
             drop_hover_m: 0.10,
             release_s: 0.4,
-            grasp_window_s: 1.9,
+            track_window_s: 0.6,
             steady_alpha_rad_s2: 0.2,
             steady_alpha_per_omega: 0.3,
             locate_timeout_s: 40.0,
