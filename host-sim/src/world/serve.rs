@@ -10,12 +10,12 @@
 //!    within 93 % of the arm's stretch (`shared::planning::MAX_STRETCH`), at
 //!    least 0.30 m from the base axis, with joint angles inside every joint's
 //!    range (inverse kinematics from the ready posture turned towards it) and
-//!    well conditioned. The arc is the disc's turn during the grasp's window
-//!    (1.9 s) at its top speed (mean speed plus ripple), with
-//!    [`MEET_MARGIN_DEG`] to meet the part, and never under [`SERVE_ARC_DEG`]:
-//!    at the default 0.5 rad/s (5 % ripple) that is 90 degrees, at 1 rad/s
-//!    (10 % ripple) 150. A shorter arc passes before the grasp can close on a
-//!    part it has met (the controller then stops with `PartOutOfReach`);
+//!    well conditioned. The arc is the disc's turn during the grasp's
+//!    sequence ([`grasp_sequence_s`], 2.95 s) at its top speed (mean speed
+//!    plus ripple), and never under [`SERVE_ARC_DEG`]: at the default
+//!    0.5 rad/s (5 % ripple) that is 90 degrees (room to meet the part), at
+//!    1 rad/s (10 % ripple) 186. Along a shorter arc no grasp and lift can be
+//!    planned (the controller then stops with `PartOutOfReach`);
 //! 2. the camera sees the gripper at the cell's travel height: somewhere over
 //!    the disc the arm reaches at that height, both marks are in view (the
 //!    search looks for them there, knowing nothing yet);
@@ -43,31 +43,26 @@ use super::workcell::Workcell;
 
 /// The least contiguous arc of the part's circle the arm must reach, degrees.
 pub const SERVE_ARC_DEG: f64 = 90.0;
-/// The arc beyond the disc's turn during the grasp's window, degrees: room
-/// to meet the part (and for the speed's ripple within a window).
-pub const MEET_MARGIN_DEG: f64 = 30.0;
 
-/// The lift's first part that the grasp's window counts, s: the part clears
-/// the disc's surface.
-const LIFT_CLEAR_S: f64 = 0.45;
-
-/// The grasp's window, s: from meeting the part at the hover height until it
-/// is off the disc (track, descend, settle, close and the lift's start; 1.9 s
-/// with the default settings).
-pub fn grasp_window_s(settings: &PickSettings) -> f64 {
+/// The grasp's sequence, s: from meeting the part at the hover height to the
+/// end of the lift, which the pick's plan holds within the arm's ranges as
+/// the disc carries the part (`shared::app::pick::window`): the longest
+/// track, the descent, the settle, the close and the lift (2.95 s with the
+/// default settings).
+pub fn grasp_sequence_s(settings: &PickSettings) -> f64 {
     f64::from(
-        settings.track_settle_s
+        settings.track_window_s
             + settings.descend_s
             + settings.grasp_settle_s
-            + settings.grasp_close_s,
-    ) + LIFT_CLEAR_S
+            + settings.grasp_close_s
+            + settings.lift_s,
+    )
 }
 
 /// The contiguous arc of the part's circle the arm must reach, degrees, for a
 /// disc turning at up to `top_speed_rad_s` (see the module's condition 1).
 pub fn required_arc_deg(top_speed_rad_s: f64, settings: &PickSettings) -> f64 {
-    let window_deg = (top_speed_rad_s.abs() * grasp_window_s(settings)).to_degrees();
-    SERVE_ARC_DEG.max(window_deg + MEET_MARGIN_DEG)
+    SERVE_ARC_DEG.max((top_speed_rad_s.abs() * grasp_sequence_s(settings)).to_degrees())
 }
 /// Samples of the part's circle (every 2 degrees).
 const CIRCLE_SAMPLES: usize = 180;
@@ -283,9 +278,9 @@ mod tests {
         let settings = PickSettings::default();
         // The default disc (0.5 rad/s, 5 % ripple): the fixed 90 degrees.
         assert_eq!(required_arc_deg(0.525, &settings), SERVE_ARC_DEG);
-        // 1 rad/s with 10 % ripple: 1.1 rad/s for 1.9 s is 120 degrees.
+        // 1 rad/s with 10 % ripple: 1.1 rad/s for 2.95 s is 186 degrees.
         let fast = required_arc_deg(-1.1, &settings);
-        assert!((fast - 149.7).abs() < 0.1, "{fast}");
+        assert!((fast - 185.9).abs() < 0.1, "{fast}");
     }
 
     #[test]
