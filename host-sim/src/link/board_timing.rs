@@ -35,11 +35,11 @@ pub struct BoardTiming {
 /// emulated pick's run; see the module's doc for the command). Counted from
 /// the job's start to its end, so the control periods that preempt it
 /// (about 1 % here) are in them too.
-pub const MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS: u64 = 492_157_960;
+pub const MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS: u64 = 520_208_400;
 /// See [`MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS`].
-pub const MEASURED_ESTIMATE_FINAL_INSTRUCTIONS: u64 = 989_981_600;
+pub const MEASURED_ESTIMATE_FINAL_INSTRUCTIONS: u64 = 1_010_296_040;
 /// See [`MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS`].
-pub const MEASURED_PLAN_INSTRUCTIONS: u64 = 32_172_560;
+pub const MEASURED_PLAN_INSTRUCTIONS: u64 = 86_831_360;
 
 /// Cycles an instruction, the pick period's on the cycle model
 /// (docs/performance.md, "Cycles on the STM32F407"): 2.03. The jobs' soft
