@@ -133,8 +133,14 @@ pub(super) fn clear_workcell(
         if !disc_clear_of(&workcell, &drop_off_base) {
             continue;
         }
+        // The disc's top speed during the grasp: a disc that stops with the
+        // part in front of the robot (`conveyor.stop`) is still when grasped.
         let conveyor = &experiment.conveyor;
-        let top_speed_rad_s = conveyor.speed_rad_s.abs() * (1.0 + conveyor.ripple_fraction);
+        let top_speed_rad_s = if conveyor.stop.is_some() {
+            0.0
+        } else {
+            conveyor.speed_rad_s.abs() * (1.0 + conveyor.ripple_fraction)
+        };
         let keep = match experiment.cell.layouts {
             LayoutKind::Any => true,
             LayoutKind::Servable => check_serve(&workcell, &settings, top_speed_rad_s).is_ok(),
