@@ -110,6 +110,15 @@ fn a_camera_bumped_during_the_search_never_sends_the_gripper_into_the_disc() {
 /// Eq 23's tracking error.
 const WIDE_LAYOUT_JOINT_MARGIN_DEG: f64 = 2.0;
 
+/// Every joint stayed the grasp window's margin inside its range.
+fn assert_keeps_the_wide_layout_margin(t: &FaultTrial) {
+    assert!(
+        t.safety.joint_limit_margin_deg >= WIDE_LAYOUT_JOINT_MARGIN_DEG,
+        "{} deg",
+        t.safety.joint_limit_margin_deg
+    );
+}
+
 /// The disc behind the robot, no fault (seed 1, trial 364): the intercept's
 /// grasp window checked the part's reach at four instants only, and the
 /// lift, carried on with the part, took joint 1 to -162.2 deg (its range ends
@@ -120,11 +129,7 @@ const WIDE_LAYOUT_JOINT_MARGIN_DEG: f64 = 2.0;
 fn a_part_behind_the_robot_is_lifted_within_joint_1s_range() {
     let t = replay(1, 364, FaultKind::None);
     assert!(t.success, "{}", t.result);
-    assert!(
-        t.safety.joint_limit_margin_deg >= WIDE_LAYOUT_JOINT_MARGIN_DEG,
-        "{} deg",
-        t.safety.joint_limit_margin_deg
-    );
+    assert_keeps_the_wide_layout_margin(&t);
 }
 
 /// The disc behind the robot, stopping after the calibration (seed 1, trial
@@ -134,11 +139,7 @@ fn a_part_behind_the_robot_is_lifted_within_joint_1s_range() {
 fn a_calibration_pose_behind_the_robot_keeps_off_joint_1s_stop() {
     let t = replay(1, 386, FaultKind::ConveyorStops);
     assert!(t.success || t.stop_cause.is_some(), "{}", t.result);
-    assert!(
-        t.safety.joint_limit_margin_deg >= WIDE_LAYOUT_JOINT_MARGIN_DEG,
-        "{} deg",
-        t.safety.joint_limit_margin_deg
-    );
+    assert_keeps_the_wide_layout_margin(&t);
 }
 
 /// Calibration poses behind the robot (seed 25639, trial 36): their wrist yaw
@@ -150,11 +151,7 @@ fn a_calibration_pose_behind_the_robot_keeps_off_joint_1s_stop() {
 fn a_calibration_pose_behind_the_robot_does_not_turn_the_wrist_round() {
     let t = replay(25639, 36, FaultKind::ConveyorStops);
     assert!(t.success || t.stop_cause.is_some(), "{}", t.result);
-    assert!(
-        t.safety.joint_limit_margin_deg >= WIDE_LAYOUT_JOINT_MARGIN_DEG,
-        "{} deg",
-        t.safety.joint_limit_margin_deg
-    );
+    assert_keeps_the_wide_layout_margin(&t);
 }
 
 /// Monte Carlo seed 1, trial 876 (`host-sim run --experiment turning --seed
