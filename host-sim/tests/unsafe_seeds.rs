@@ -170,3 +170,16 @@ fn a_lift_near_full_stretch_stays_within_the_joint_speed_limits() {
         run.safety.joint_limit_margin_deg
     );
 }
+
+/// The conveyor speeds up from 0.5 to 0.85 rad/s while the arm rides with
+/// the part (seed 36252, trial 9): the grasp window had been proven at the
+/// plan's speed, and the descent, the close and the lift carried on at the
+/// new one took joint 1 to -162.6 deg (its range ends at -160). Riding with
+/// the part at a speed the window was not proven for now abandons the
+/// intercept (rising clear) and plans again, or stops with the cause.
+#[test]
+fn a_disc_that_speeds_up_under_the_descent_is_let_go_within_joint_1s_range() {
+    let t = replay(36252, 9, FaultKind::ConveyorSpeedsUp);
+    assert!(t.success || t.stop_cause.is_some(), "{}", t.result);
+    assert_keeps_the_wide_layout_margin(&t);
+}

@@ -182,6 +182,8 @@ impl PickController {
             link_frames_rejected: 0,
             supervisor: Supervisor::new(),
             intercept_attempts: 0,
+            window_omega: 0.0,
+            last_unsettled_s: 0.0,
             route: Route::new(),
             sightings: Sightings::new(),
             calibration_accepted: false,

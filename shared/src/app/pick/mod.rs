@@ -233,6 +233,12 @@ pub struct PickController {
     plan_lead_s: f32,
     /// Intercepts planned for the part so far.
     intercept_attempts: u8,
+    /// When the grasp point was last further than `close_tolerance_m` from
+    /// its reference (or the step began), s.
+    last_unsettled_s: f32,
+    /// The conveyor speed the running intercept's grasp window was proven
+    /// at (`window::grasp_window_holds`), rad/s.
+    window_omega: f32,
 
     // What goes out and comes back.
     /// The job in flight.
@@ -354,6 +360,7 @@ impl PickController {
     fn enter(&mut self, step: Step) {
         self.step = step;
         self.step_started_s = self.now_s;
+        self.last_unsettled_s = self.now_s;
         let settings = self.settings;
         let drop_off = self.cell.drop_off_base;
         let motion = match step {
@@ -404,13 +411,32 @@ impl PickController {
                 return;
             }
             Step::CalibrateMove(i) => match self.poses.get(usize::from(i)).copied() {
-                Some(target) if target.z_m < self.safe_floor_z() => {
-                    // Not yet confirmed by a sighting from above (the marks
-                    // were not seen at the pose before): skip it.
-                    self.enter(Step::CalibrateMove(i.saturating_add(1)));
-                    return;
+                Some(target) => {
+                    // A height not yet confirmed clear by a sighting from above
+                    // is shown at the lowest one that is: seen there, the marks
+                    // clear the next step down. (Skipping it instead left every
+                    // pose below a search that had looked from high up: no pose
+                    // at all, and a base known from the search's sightings alone.)
+                    let floor = self.safe_floor_z();
+                    let raised = target.z_m < floor;
+                    let target = ArcPoint {
+                        z_m: target.z_m.max(floor),
+                        ..target
+                    };
+                    let position = Vector3::new(
+                        target.radius_m * libm::cosf(target.azimuth_rad),
+                        target.radius_m * libm::sinf(target.azimuth_rad),
+                        target.z_m,
+                    );
+                    let planned = self.arc_to(self.route.near_start_with_wrist(target));
+                    let reachable = crate::planning::within_reach(&self.model, &position);
+                    if raised && (planned.is_err() || !reachable) {
+                        // Out of reach raised: the next pose.
+                        self.enter(Step::CalibrateMove(i.saturating_add(1)));
+                        return;
+                    }
+                    planned
                 }
-                Some(target) => self.arc_to(self.route.near_start_with_wrist(target)),
                 None => {
                     self.enter(Step::EstimateFinal);
                     return;
@@ -542,9 +568,7 @@ impl PickController {
             Step::InterceptAbandoned if finished => self.enter(Step::Relocate),
             Step::Relocate if finished => self.enter(Step::Locate),
             Step::Track => {
-                let error = (self.tool_measured
-                    - (self.reference.position - Vector3::new(0.0, 0.0, TOOL_LENGTH_M as f32)))
-                .norm();
+                let error = self.tool_error_m();
                 if in_step >= settings.track_settle_s && error <= settings.track_tolerance_m {
                     self.enter(Step::Descend);
                 } else if in_step >= settings.track_window_s {
@@ -558,7 +582,17 @@ impl PickController {
                 }
             }
             Step::Descend if in_step >= settings.descend_s => self.enter(Step::GraspSettle),
-            Step::GraspSettle if in_step >= settings.grasp_settle_s => self.enter(Step::GraspClose),
+            Step::GraspSettle => {
+                if self.tool_error_m() > settings.close_tolerance_m {
+                    self.last_unsettled_s = now;
+                }
+                let settled = now - self.last_unsettled_s >= settings.close_hold_s;
+                if (in_step >= settings.grasp_settle_s && settled)
+                    || in_step >= settings.grasp_settle_max_s
+                {
+                    self.enter(Step::GraspClose);
+                }
+            }
             Step::GraspClose if in_step >= settings.grasp_close_s => {
                 if self.part_in_gripper {
                     self.enter(Step::Lift);
@@ -585,6 +619,13 @@ impl PickController {
             }
             _ => {}
         }
+    }
+
+    /// How far the grasp point, measured through the joint encoders, is from
+    /// its reference, m.
+    fn tool_error_m(&self) -> f32 {
+        let tool_reference = self.reference.position - Vector3::new(0.0, 0.0, TOOL_LENGTH_M as f32);
+        (self.tool_measured - tool_reference).norm()
     }
 
     /// An estimate came: a preliminary one sets the calibration poses; a
@@ -659,6 +700,7 @@ impl PickController {
             }
             Some(JobOutcome::Plan(Ok((plan, prediction)))) => {
                 self.intercept_attempts = self.intercept_attempts.saturating_add(1);
+                self.window_omega = prediction.omega;
                 self.motion = Motion::Intercept {
                     plan,
                     start_s: self.now_s,

@@ -332,37 +332,48 @@ impl PickController {
         }
     }
 
-    /// An intercept the conveyor left (see [`Supervisor::intercept_departed`])
-    /// is abandoned and planned again, up to `max_intercept_attempts`.
+    /// An intercept the conveyor left (see [`Supervisor::intercept_departed`]),
+    /// or a ride with the part at a conveyor speed its grasp window was not
+    /// proven for ([`Supervisor::conveyor_departed`]), is abandoned (rising
+    /// clear of the part) and planned again, up to `max_intercept_attempts`.
+    /// Once the gripper closes, it holds or misses the part: abandoning then
+    /// would carry a half-gripped part away, so the close runs its short course.
     fn check_intercept(&mut self, part: Option<&TaskState<f32>>) {
-        let (
-            Step::Intercept,
-            Motion::Intercept {
-                start_s,
-                prediction,
-                ..
-            },
-        ) = (self.step, self.motion)
-        else {
-            return;
+        let omega_now = self.conveyor_state.map(|c| c.omega);
+        let departed = match (self.step, self.motion) {
+            (
+                Step::Intercept,
+                Motion::Intercept {
+                    start_s,
+                    prediction,
+                    ..
+                },
+            ) => {
+                let (Some(live), Some(estimate)) = (part, self.estimate.as_ref()) else {
+                    return;
+                };
+                let t = self.now_s - start_s;
+                let assumed = estimate.grasp_point(
+                    prediction.theta_at_start + prediction.omega * t,
+                    prediction.omega,
+                    0.0,
+                );
+                Supervisor::intercept_departed(
+                    live,
+                    &assumed,
+                    omega_now.unwrap_or(prediction.omega),
+                    prediction.omega,
+                    &self.settings,
+                )
+            }
+            (Step::Track | Step::Descend | Step::GraspSettle, _) => {
+                omega_now.is_some_and(|omega| {
+                    Supervisor::conveyor_departed(omega, self.window_omega, &self.settings)
+                })
+            }
+            _ => return,
         };
-        let (Some(live), Some(estimate)) = (part, self.estimate.as_ref()) else {
-            return;
-        };
-        let t = self.now_s - start_s;
-        let assumed = estimate.grasp_point(
-            prediction.theta_at_start + prediction.omega * t,
-            prediction.omega,
-            0.0,
-        );
-        let omega_now = self.conveyor_state.map_or(prediction.omega, |c| c.omega);
-        if !Supervisor::intercept_departed(
-            live,
-            &assumed,
-            omega_now,
-            prediction.omega,
-            &self.settings,
-        ) {
+        if !departed {
             return;
         }
         if self.intercept_attempts >= self.settings.max_intercept_attempts {

@@ -40,8 +40,23 @@ pub struct PickSettings {
     pub track_tolerance_m: f32,
     /// The descent from hover height to the grasp point, s.
     pub descend_s: f32,
-    /// How long the gripper settles at the grasp point before closing, s.
+    /// How long the gripper settles at the grasp point before closing, s:
+    /// at least this, then until the grasp point has stayed within
+    /// `close_tolerance_m` of its reference for `close_hold_s`, at most
+    /// `grasp_settle_max_s` (the grasp window is proven for the longest).
     pub grasp_settle_s: f32,
+    /// The longest settle before the gripper closes regardless, s.
+    pub grasp_settle_max_s: f32,
+    /// How close the grasp point must stay to its reference before the
+    /// gripper closes, m: a joint that stuck where the descent turned it
+    /// round (Coulomb friction off the nominal model's) winds Eq 23's
+    /// feedback up and then slips, at up to 35 mm/s against the part;
+    /// closing on the slip misses. Four times the settle's usual error.
+    pub close_tolerance_m: f32,
+    /// How long the grasp point must stay within `close_tolerance_m`, s
+    /// (held that long, its mean speed off the part's is at most
+    /// `2 close_tolerance_m / close_hold_s`).
+    pub close_hold_s: f32,
     /// How long the gripper takes to close, s.
     pub grasp_close_s: f32,
     /// How far the part is lifted off the disc, m.
@@ -195,6 +210,9 @@ impl Default for PickSettings {
             track_tolerance_m: 0.003,
             descend_s: 0.7,
             grasp_settle_s: 0.15,
+            grasp_settle_max_s: 0.4,
+            close_tolerance_m: 0.25e-3,
+            close_hold_s: 0.05,
             grasp_close_s: 0.3,
             lift_height_m: 0.15,
             lift_s: 1.2,

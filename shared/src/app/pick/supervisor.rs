@@ -157,7 +157,7 @@ impl Supervisor {
     /// reversed under the plan takes the part where the plan never checked
     /// reach or joint speeds. True when the `live` part is further from the
     /// `assumed` one than the correction may take, or the conveyor's speed
-    /// `omega_now` has changed too much from the plan's `omega_planned`.
+    /// has changed too much from the plan's ([`Self::conveyor_departed`]).
     pub(super) fn intercept_departed(
         live: &TaskState<f32>,
         assumed: &TaskState<f32>,
@@ -166,14 +166,27 @@ impl Supervisor {
         settings: &PickSettings,
     ) -> bool {
         let moved = (live.position - assumed.position).norm();
+        !at_most(moved, settings.max_intercept_correction_m)
+            || Self::conveyor_departed(omega_now, omega_planned, settings)
+    }
+
+    /// The grasp window (track, descend, settle, close, lift) was proven at
+    /// the plan's conveyor speed `omega_planned`: riding with the part at a
+    /// speed `omega_now` further from it than the settings tolerate carries
+    /// the arm where the proof never went (a disc that sped up under a
+    /// descent drives joint 1 past its stop by the lift).
+    pub(super) fn conveyor_departed(
+        omega_now: f32,
+        omega_planned: f32,
+        settings: &PickSettings,
+    ) -> bool {
         let speed_change = libm::fabsf(omega_now - omega_planned);
-        let changed = !at_most(
+        !at_most(
             speed_change,
             settings
                 .max_conveyor_speed_change_rad_s
                 .max(settings.max_conveyor_speed_change_fraction * libm::fabsf(omega_planned)),
-        );
-        !at_most(moved, settings.max_intercept_correction_m) || changed
+        )
     }
 
     /// Before the calibration is accepted, nothing goes more than
@@ -330,6 +343,9 @@ mod tests {
         assert!(Supervisor::intercept_departed(
             &part, &part, -0.6, 0.6, &settings
         ));
+        assert!(!Supervisor::conveyor_departed(0.65, 0.6, &settings));
+        assert!(Supervisor::conveyor_departed(0.85, 0.5, &settings));
+        assert!(Supervisor::conveyor_departed(0.0, 0.6, &settings));
     }
 
     #[test]

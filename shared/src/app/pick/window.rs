@@ -13,8 +13,8 @@
 //! and the same lift quintic, inverse kinematics at every sample, each joint
 //! [`WINDOW_JOINT_MARGIN_RAD`] inside its range and within
 //! [`WINDOW_SPEED_FRACTION`] of its speed limit (`J^-1 v`), for the shortest
-//! track (`track_settle_s`) and the longest one the pick allows
-//! (`track_window_s`). This runs in the worker's plan job, never in the
+//! track and settle (`track_settle_s`, `grasp_settle_s`) and the longest
+//! ones the pick allows (`track_window_s`, `grasp_settle_max_s`). This runs in the worker's plan job, never in the
 //! control period.
 
 use super::estimate::CellEstimate;
@@ -105,18 +105,19 @@ fn check_state(
     (!fast).then_some(q)
 }
 
-/// One course of the window, the track lasting `track_s`: riding with the
+/// One course of the window, the track lasting `track_s` and the settle
+/// `settle_s`: riding with the
 /// part from the intercept's end (`tau_end_s` after the plan's start) to the
 /// lift, then the lift. Returns false at the first sample that fails.
 fn course_holds(
     part_at: &impl Fn(f32) -> TaskState<f32>,
     tau_end_s: f32,
-    track_s: f32,
+    (track_s, settle_s): (f32, f32),
     q_seed: &JointVector<f32>,
     settings: &PickSettings,
     robot: &Puma560<f32>,
 ) -> bool {
-    let lift_at_s = track_s + settings.descend_s + settings.grasp_settle_s + settings.grasp_close_s;
+    let lift_at_s = track_s + settings.descend_s + settle_s + settings.grasp_close_s;
     let span = lift_at_s.max(0.0);
     let steps = libm::ceilf(span / WINDOW_SAMPLE_S).clamp(1.0, 64.0) as u16;
     let mut q = *q_seed;
@@ -173,7 +174,8 @@ pub fn grasp_window_holds(
     // First the end of the longest course's lift alone (one inverse
     // kinematics): where the part goes furthest, and where most windows that
     // fail, fail; then both courses sample by sample.
-    let lift_at_s = longest + settings.descend_s + settings.grasp_settle_s + settings.grasp_close_s;
+    let longest_settle = settings.grasp_settle_max_s.max(settings.grasp_settle_s);
+    let lift_at_s = longest + settings.descend_s + longest_settle + settings.grasp_close_s;
     let lift_start = follow_state(&part_at, tau_end_s, lift_at_s, longest, settings);
     let lift_end = match route::lift(&lift_start, settings, 0.0) {
         Ok(Motion::Quintic { path, .. }) => path.sample(path.duration()),
@@ -182,7 +184,15 @@ pub fn grasp_window_holds(
     if check_state(&lift_end, q_seed, robot).is_none() {
         return false;
     }
-    course_holds(&part_at, tau_end_s, longest, q_seed, settings, robot)
-        && (longest - shortest <= 1e-3
-            || course_holds(&part_at, tau_end_s, shortest, q_seed, settings, robot))
+    let longest_course = (longest, longest_settle);
+    let shortest_course = (shortest, settings.grasp_settle_s);
+    course_holds(&part_at, tau_end_s, longest_course, q_seed, settings, robot)
+        && course_holds(
+            &part_at,
+            tau_end_s,
+            shortest_course,
+            q_seed,
+            settings,
+            robot,
+        )
 }
