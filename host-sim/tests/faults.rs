@@ -13,11 +13,7 @@ use rayon::prelude::*;
 use shared::protocol::{FaultCause, PickPhase};
 
 fn turning() -> PickExperiment {
-    PickScenarioFile::embedded_default()
-        .unwrap()
-        .experiment("turning")
-        .unwrap()
-        .clone()
+    PickScenarioFile::default_experiment("turning").unwrap()
 }
 
 /// When the pick started to stop, and when it was at rest and holding.

@@ -10,11 +10,7 @@ use host_sim::scenario::pick::{PickExperiment, PickScenarioFile};
 use shared::protocol::PickPhase;
 
 fn turning() -> PickExperiment {
-    PickScenarioFile::embedded_default()
-        .unwrap()
-        .experiment("turning")
-        .unwrap()
-        .clone()
+    PickScenarioFile::default_experiment("turning").unwrap()
 }
 
 fn pick(trial: usize) -> PickRun {

@@ -11,11 +11,7 @@ use host_sim::scenario::pick::{MissedCounts, PickExperiment, PickScenarioFile};
 use shared::protocol::PickPhase;
 
 fn turning() -> PickExperiment {
-    PickScenarioFile::embedded_default()
-        .unwrap()
-        .experiment("turning")
-        .unwrap()
-        .clone()
+    PickScenarioFile::default_experiment("turning").unwrap()
 }
 
 fn replay(seed: u64, trial: usize, kind: FaultKind) -> FaultTrial {

@@ -139,7 +139,9 @@ pub struct ConveyorSnapshot {
     pub lead_s: f32,
 }
 
-/// Whether the grasp pose over the part is reachable at conveyor angle `theta`.
+/// Whether the grasp pose over the part is reachable at conveyor angle
+/// `theta`, the inverse kinematics seeded with `q_seed` (already turned
+/// towards the part: [`turned_towards`]).
 fn reachable_at(
     estimate: &CellEstimate,
     theta: f32,
@@ -152,31 +154,31 @@ fn reachable_at(
     }
     let pose = flange_pose(&grasp.position, grasp.yaw);
     within_reach(robot, &pose.translation.vector)
-        && solve_ik(
-            robot,
-            &pose,
-            &seed_towards(q_seed, &grasp.position, robot),
-            &IkConfig::default(),
-        )
-        .is_ok_and(|q| well_conditioned(robot, &q))
+        && solve_ik(robot, &pose, q_seed, &IkConfig::default())
+            .is_ok_and(|q| well_conditioned(robot, &q))
 }
 
-/// `q_seed` with joint 1 turned by the azimuth from its flange to `target`
-/// (base frame): the inverse kinematics then need not swing the waist round
-/// from afar, from where it may not converge. On a fast disc the grasp's
-/// window spans a wide arc (at 1 rad/s, 109 degrees in 1.9 s): seeded with
-/// the arm's start alone, the far end of that arc failed to converge and
-/// no window was ever admitted.
-fn seed_towards(
+/// `q_seed`, whose flange stands at azimuth `flange_azimuth`, with joint 1
+/// turned by the azimuth from there to `target` (base frame): the inverse
+/// kinematics then need not swing the waist round from afar, from where
+/// they may not converge. On a fast disc the grasp's window spans a wide
+/// arc (at 1 rad/s, 109 degrees in 1.9 s): seeded with the arm's start
+/// alone, the far end of that arc failed to converge and no window was
+/// ever admitted.
+fn turned_towards(
     q_seed: &JointVector<f32>,
+    flange_azimuth: f32,
     target: &Vector3<f32>,
-    robot: &Puma560<f32>,
 ) -> JointVector<f32> {
-    let flange = robot.forward_kinematics(q_seed).translation.vector;
     let mut seed = *q_seed;
-    seed.x +=
-        crate::angle::wrap_pi(libm::atan2f(target.y, target.x) - libm::atan2f(flange.y, flange.x));
+    seed.x += crate::angle::wrap_pi(libm::atan2f(target.y, target.x) - flange_azimuth);
     seed
+}
+
+/// The azimuth of the flange at joint angles `q`, rad.
+fn flange_azimuth(q: &JointVector<f32>, robot: &Puma560<f32>) -> f32 {
+    let flange = robot.forward_kinematics(q).translation.vector;
+    libm::atan2f(flange.y, flange.x)
 }
 
 /// Conveyor angles at which [`part_path_enters_reach`] tries the part: every 10 degrees.
@@ -193,10 +195,13 @@ pub fn part_path_enters_reach(
     q_seed: &JointVector<f32>,
     robot: &Puma560<f32>,
 ) -> bool {
-    // Each try starts from `q_seed` turned towards the part (`seed_towards`).
+    // Each try starts from `q_seed` turned towards the part (`turned_towards`).
+    let from_azimuth = flange_azimuth(q_seed, robot);
     (0..PART_PATH_SAMPLES).any(|k| {
         let theta = f32::from(k) * core::f32::consts::TAU / f32::from(PART_PATH_SAMPLES);
-        reachable_at(estimate, theta, q_seed, robot)
+        let grasp = estimate.grasp_point(theta, 0.0, 0.0).position;
+        let seed = turned_towards(q_seed, from_azimuth, &grasp);
+        reachable_at(estimate, theta, &seed, robot)
     })
 }
 
@@ -231,13 +236,11 @@ pub fn plan_part_intercept(
     // The window's inverse kinematics start from the arm's joints with
     // joint 1 turned by the azimuth from the flange to the part's hover
     // point, so they need not swing the waist round from afar.
-    let flange_azimuth = libm::atan2f(start.position.y, start.position.x);
+    let from_azimuth = libm::atan2f(start.position.y, start.position.x);
     // Whether any duration of the scan was admissible (see below).
     let any_admissible = Cell::new(false);
     let admissible = |d: f32| {
-        let target = target_after(d).position;
-        let mut seed = *q_start;
-        seed.x += crate::angle::wrap_pi(libm::atan2f(target.y, target.x) - flange_azimuth);
+        let seed = turned_towards(q_start, from_azimuth, &target_after(d).position);
         let ok = reachable_at(estimate, theta_after(d), &seed, robot)
             && grasp_window_holds(estimate, &prediction, d, &seed, settings, robot);
         if ok {
