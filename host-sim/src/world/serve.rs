@@ -12,10 +12,10 @@
 //!    every joint's range (inverse kinematics from the ready posture turned
 //!    towards it; the controller's `WINDOW_JOINT_MARGIN_RAD`) and well
 //!    conditioned. The arc is the disc's turn during the grasp's
-//!    sequence ([`grasp_sequence_s`], 3.2 s) at its top speed (mean speed
+//!    sequence ([`grasp_sequence_s`], 2.95 s) at its top speed (mean speed
 //!    plus ripple), and never under [`SERVE_ARC_DEG`]: at the default
 //!    0.5 rad/s (5 % ripple) that is 90 degrees (room to meet the part), at
-//!    1 rad/s (10 % ripple) 202. Along a shorter arc no grasp and lift can be
+//!    1 rad/s (10 % ripple) 186. Along a shorter arc no grasp and lift can be
 //!    planned (the controller then stops with `PartOutOfReach`);
 //! 2. the camera sees the gripper at the cell's travel height: somewhere over
 //!    the disc the arm reaches at that height, both marks are in view (the
@@ -49,13 +49,14 @@ pub const SERVE_ARC_DEG: f64 = 90.0;
 /// The grasp's sequence, s: from meeting the part at the hover height to the
 /// end of the lift, which the pick's plan holds within the arm's ranges as
 /// the disc carries the part (`shared::app::pick::window`): the longest
-/// track, the descent, the longest settle, the close and the lift (3.2 s
-/// with the default settings).
+/// track, the descent, the shortest settle (the pick waits longer for a
+/// settled arm only where the window holds for it), the close and the lift
+/// (2.95 s with the default settings).
 pub fn grasp_sequence_s(settings: &PickSettings) -> f64 {
     f64::from(
         settings.track_window_s
             + settings.descend_s
-            + settings.grasp_settle_max_s.max(settings.grasp_settle_s)
+            + settings.grasp_settle_s
             + settings.grasp_close_s
             + settings.lift_s,
     )
@@ -288,9 +289,9 @@ mod tests {
         let settings = PickSettings::default();
         // The default disc (0.5 rad/s, 5 % ripple): the fixed 90 degrees.
         assert_eq!(required_arc_deg(0.525, &settings), SERVE_ARC_DEG);
-        // 1 rad/s with 10 % ripple: 1.1 rad/s for 3.2 s is 202 degrees.
+        // 1 rad/s with 10 % ripple: 1.1 rad/s for 2.95 s is 186 degrees.
         let fast = required_arc_deg(-1.1, &settings);
-        assert!((fast - 201.7).abs() < 0.1, "{fast}");
+        assert!((fast - 185.9).abs() < 0.1, "{fast}");
     }
 
     #[test]

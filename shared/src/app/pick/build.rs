@@ -183,6 +183,7 @@ impl PickController {
             supervisor: Supervisor::new(),
             intercept_attempts: 0,
             window_omega: 0.0,
+            window_settle_max_s: 0.0,
             last_unsettled_s: 0.0,
             route: Route::new(),
             sightings: Sightings::new(),

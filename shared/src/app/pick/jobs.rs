@@ -222,9 +222,10 @@ pub fn plan_part_intercept(
     settings: &PickSettings,
     robot: &Puma560<f32>,
 ) -> Result<(InterceptPlan<f32>, Prediction), PlanError> {
-    let prediction = Prediction {
+    let mut prediction = Prediction {
         theta_at_start: conveyor.theta + conveyor.omega * conveyor.lead_s,
         omega: conveyor.omega,
+        settle_max_s: settings.grasp_settle_s,
     };
     let theta_after = |d: f32| prediction.theta_at_start + prediction.omega * d;
     let target_after = |d: f32| {
@@ -242,7 +243,14 @@ pub fn plan_part_intercept(
     let admissible = |d: f32| {
         let seed = turned_towards(q_start, from_azimuth, &target_after(d).position);
         let ok = reachable_at(estimate, theta_after(d), &seed, robot)
-            && grasp_window_holds(estimate, &prediction, d, &seed, settings, robot);
+            && grasp_window_holds(
+                estimate,
+                &prediction,
+                d,
+                &seed,
+                (settings, settings.grasp_settle_s),
+                robot,
+            );
         if ok {
             any_admissible.set(true);
         }
@@ -255,7 +263,17 @@ pub fn plan_part_intercept(
         ..InterceptLimits::default()
     };
     match plan_intercept_where(start, target_after, admissible, &limits, robot, q_start) {
-        Ok(plan) => Ok((plan, prediction)),
+        Ok(plan) => {
+            // The window holds for the shortest settle; the close may wait
+            // longer for a settled arm only where it holds for that too.
+            let d = plan.duration();
+            let seed = turned_towards(q_start, from_azimuth, &target_after(d).position);
+            let longer = (settings, settings.grasp_settle_max_s);
+            if grasp_window_holds(estimate, &prediction, d, &seed, longer, robot) {
+                prediction.settle_max_s = settings.grasp_settle_max_s;
+            }
+            Ok((plan, prediction))
+        }
         // The scan saw the part go round a whole turn and never found it
         // within reach for the grasp's window: the part's reachable arc is
         // shorter than the disc turns in that window (a fast disc, a far or

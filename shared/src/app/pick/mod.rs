@@ -239,6 +239,8 @@ pub struct PickController {
     /// The conveyor speed the running intercept's grasp window was proven
     /// at (`window::grasp_window_holds`), rad/s.
     window_omega: f32,
+    /// The longest settle before the close that window was proven for, s.
+    window_settle_max_s: f32,
 
     // What goes out and comes back.
     /// The job in flight.
@@ -588,7 +590,7 @@ impl PickController {
                 }
                 let settled = now - self.last_unsettled_s >= settings.close_hold_s;
                 if (in_step >= settings.grasp_settle_s && settled)
-                    || in_step >= settings.grasp_settle_max_s
+                    || in_step >= self.window_settle_max_s
                 {
                     self.enter(Step::GraspClose);
                 }
@@ -701,6 +703,7 @@ impl PickController {
             Some(JobOutcome::Plan(Ok((plan, prediction)))) => {
                 self.intercept_attempts = self.intercept_attempts.saturating_add(1);
                 self.window_omega = prediction.omega;
+                self.window_settle_max_s = prediction.settle_max_s;
                 self.motion = Motion::Intercept {
                     plan,
                     start_s: self.now_s,

@@ -21,6 +21,10 @@ pub struct Prediction {
     pub theta_at_start: f32,
     /// The conveyor speed the plan assumes, rad/s.
     pub omega: f32,
+    /// The longest settle before the close the plan's grasp window was
+    /// proven for, s (`PickSettings::grasp_settle_max_s`, or
+    /// `grasp_settle_s` where the longer one does not hold).
+    pub settle_max_s: f32,
 }
 
 /// The gripper's current task.
@@ -224,6 +228,7 @@ mod tests {
             prediction: Prediction {
                 theta_at_start: 0.0,
                 omega: 0.0,
+                settle_max_s: 0.15,
             },
         };
         let at = |t: f32| {

@@ -43,7 +43,8 @@ pub struct PickSettings {
     /// How long the gripper settles at the grasp point before closing, s:
     /// at least this, then until the grasp point has stayed within
     /// `close_tolerance_m` of its reference for `close_hold_s`, at most
-    /// `grasp_settle_max_s` (the grasp window is proven for the longest).
+    /// `grasp_settle_max_s` where the plan proved the grasp window for it
+    /// (`grasp_settle_s` otherwise).
     pub grasp_settle_s: f32,
     /// The longest settle before the gripper closes regardless, s.
     pub grasp_settle_max_s: f32,

@@ -14,7 +14,9 @@
 //! [`WINDOW_JOINT_MARGIN_RAD`] inside its range and within
 //! [`WINDOW_SPEED_FRACTION`] of its speed limit (`J^-1 v`), for the shortest
 //! track and settle (`track_settle_s`, `grasp_settle_s`) and the longest
-//! ones the pick allows (`track_window_s`, `grasp_settle_max_s`). This runs in the worker's plan job, never in the
+//! ones the pick allows (`track_window_s`, and `grasp_settle_max_s` where
+//! the window holds for it, `grasp_settle_s` otherwise: a fast disc's
+//! window may not hold for the longer settle). This runs in the worker's plan job, never in the
 //! control period.
 
 use super::estimate::CellEstimate;
@@ -151,15 +153,16 @@ fn course_holds(
 /// Whether the grasp window after an intercept that ends `tau_end_s` after
 /// the plan's start holds (see the module's doc): riding with the part,
 /// descending, grasping and lifting it, for the shortest and the longest
-/// track, every joint inside its range with margin and within its speed
-/// limits. `q_seed` seeds the inverse kinematics (the arm's joints at the
-/// plan's start, joint 1 turned towards the part).
+/// track and settle, the longest settle lasting `longest_settle_s`, every
+/// joint inside its range with margin and within its speed limits.
+/// `q_seed` seeds the inverse kinematics (the arm's joints at the plan's
+/// start, joint 1 turned towards the part).
 pub fn grasp_window_holds(
     estimate: &CellEstimate,
     prediction: &Prediction,
     tau_end_s: f32,
     q_seed: &JointVector<f32>,
-    settings: &PickSettings,
+    (settings, longest_settle_s): (&PickSettings, f32),
     robot: &Puma560<f32>,
 ) -> bool {
     let part_at = |tau: f32| {
@@ -174,7 +177,7 @@ pub fn grasp_window_holds(
     // First the end of the longest course's lift alone (one inverse
     // kinematics): where the part goes furthest, and where most windows that
     // fail, fail; then both courses sample by sample.
-    let longest_settle = settings.grasp_settle_max_s.max(settings.grasp_settle_s);
+    let longest_settle = longest_settle_s.max(settings.grasp_settle_s);
     let lift_at_s = longest + settings.descend_s + longest_settle + settings.grasp_close_s;
     let lift_start = follow_state(&part_at, tau_end_s, lift_at_s, longest, settings);
     let lift_end = match route::lift(&lift_start, settings, 0.0) {
