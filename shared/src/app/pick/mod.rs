@@ -239,7 +239,8 @@ pub struct PickController {
     /// The conveyor speed the running intercept's grasp window was proven
     /// at (`window::grasp_window_holds`), rad/s.
     window_omega: f32,
-    /// The longest settle before the close that window was proven for, s.
+    /// The longest settle before the close that window was proven for, s,
+    /// plus the track's spare time once the track has settled.
     window_settle_max_s: f32,
 
     // What goes out and comes back.
@@ -572,6 +573,10 @@ impl PickController {
             Step::Track => {
                 let error = self.tool_error_m();
                 if in_step >= settings.track_settle_s && error <= settings.track_tolerance_m {
+                    // The window was proven for a track of `track_window_s`
+                    // and the ride is the same whatever splits it: the
+                    // track's spare time may go to the settle.
+                    self.window_settle_max_s += (settings.track_window_s - in_step).max(0.0);
                     self.enter(Step::Descend);
                 } else if in_step >= settings.track_window_s {
                     // Not settled within the track the plan's grasp window
