@@ -359,6 +359,8 @@ async fn next_sample(
                         joint_counts: reading.joint_counts,
                         conveyor_counts: reading.conveyor_counts,
                         part_in_gripper: reading.part_in_gripper,
+                        joint_pots_rad: reading.joint_pots_rad,
+                        joint_index_counts: reading.joint_index_counts,
                     };
                     Reading::Sample { sample, now_us }
                 }

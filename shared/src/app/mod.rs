@@ -6,11 +6,13 @@
 //! - [`tool`]: the gripper's geometry (grasp point, the two marks the camera sees).
 //! - [`joint_observer`]: joint angles and speeds from quantised encoders.
 //! - [`homing`]: joint angles from incremental counters at power-on (potentiometers and index pulses).
+//! - [`power_on_homing`]: the homing sequence before the pick (the arm held and moved in joint space).
 //! - [`pick`]: the pick's state machine, fusion at control rate and background jobs.
 //! - [`vision`]: camera frames paired with their trigger's encoder values, as observations.
 
 mod controller;
 pub mod homing;
+pub mod power_on_homing;
 pub mod joint_observer;
 pub mod joint_speed;
 mod link;

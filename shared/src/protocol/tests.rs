@@ -118,15 +118,19 @@ fn arb_message() -> impl Strategy<Value = Message> {
             any::<u32>(),
             any::<u64>(),
             any::<[i32; JOINTS]>(),
-            any::<u32>()
+            any::<u32>(),
+            any::<[f32; JOINTS]>(),
+            any::<[Option<i32>; JOINTS]>()
         )
-            .prop_map(|(seq, time_us, j, c)| {
+            .prop_map(|(seq, time_us, j, c, pots, index)| {
                 Message::SensorSample(SensorSample {
                     seq,
                     time_us,
                     joint_counts: j,
                     conveyor_counts: c,
                     part_in_gripper: false,
+                    joint_pots_rad: pots,
+                    joint_index_counts: index,
                 })
             }),
         (
@@ -310,6 +314,8 @@ fn the_largest_messages_fit_the_documented_frame() {
             joint_counts: [i32::MIN; JOINTS],
             conveyor_counts: u32::MAX,
             part_in_gripper: true,
+            joint_pots_rad: [f32::MAX; JOINTS],
+            joint_index_counts: [Some(i32::MIN); JOINTS],
         }),
         Message::ActuatorCommand(ActuatorCommand {
             seq: u32::MAX,
