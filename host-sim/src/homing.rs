@@ -27,8 +27,10 @@ pub struct HomingTrial {
     pub error: Option<String>,
     /// Simulated time to the end of homing, s.
     pub duration_s: f64,
-    /// The fastest any joint turned, rad/s.
+    /// The fastest any joint turned, rad/s, which joint (0-based) and when (s).
     pub max_joint_speed_rad_s: f64,
+    pub max_speed_joint: usize,
+    pub max_speed_at_s: f64,
     /// The farthest any joint went from where it stood at power-on, rad.
     pub max_excursion_rad: f64,
     /// How far the arm ended from where it stood at power-on, worst joint, rad.
@@ -69,6 +71,7 @@ pub fn run_homing_trial(experiment: &PickExperiment, seed: u64) -> Result<Homing
     let start = world.truth().q_rad;
     let mut max_speed: f64 = 0.0;
     let mut max_excursion: f64 = 0.0;
+    let (mut max_speed_joint, mut max_speed_at_s) = (0, 0.0);
     let stage = loop {
         let now = world.time_s();
         if now > HOMING_TIME_LIMIT_S {
@@ -90,7 +93,11 @@ pub fn run_homing_trial(experiment: &PickExperiment, seed: u64) -> Result<Homing
         world.apply(&command)?;
         let truth = world.truth();
         for j in 0..JOINTS {
-            max_speed = max_speed.max(truth.qd_rad_s[j].abs());
+            if truth.qd_rad_s[j].abs() > max_speed {
+                max_speed = truth.qd_rad_s[j].abs();
+                max_speed_joint = j;
+                max_speed_at_s = truth.time_s;
+            }
             max_excursion = max_excursion.max((truth.q_rad[j] - start[j]).abs());
         }
     };
@@ -106,6 +113,8 @@ pub fn run_homing_trial(experiment: &PickExperiment, seed: u64) -> Result<Homing
         error: app.homing_error().map(|e| e.to_string()),
         duration_s: world.time_s(),
         max_joint_speed_rad_s: max_speed,
+        max_speed_joint,
+        max_speed_at_s,
         max_excursion_rad: max_excursion,
         end_offset_rad,
     })

@@ -23,9 +23,10 @@
 //! control period gains a subtraction per joint and nothing else
 //! ([`HomedOffsets::apply`]).
 //!
-//! The law is the joint brake's (`pick::brake`): a spring to a reference
-//! and damping to its speed, with the nominal model's gravity and friction
-//! fed forward (Eq 23's G and F terms), within the drives' torque headroom.
+//! The law is the joint brake's (`pick::brake`), stiffer: a spring to a
+//! reference and damping to its speed, with the nominal model's gravity and
+//! (part of its) friction fed forward (Eq 23's G and F terms), within the
+//! drives' torque headroom.
 
 use crate::app::homing::{HomingError, IndexGrid, JointHoming, JointHomingSpec, JOINTS};
 use crate::app::joint_observer::JointObserver;
@@ -59,11 +60,18 @@ pub const SETTLE_S: f32 = 0.1;
 /// Longest the settle waits for rest before handing over anyway, s (the
 /// pick holds the arm from its first period).
 pub const SETTLE_LIMIT_S: f32 = 2.0;
-/// Stiffness of each joint's spring to its reference, N m/rad (the joint
-/// brake's).
-const STIFFNESS_NM: [f32; JOINTS] = [300.0, 600.0, 600.0, 20.0, 20.0, 20.0];
-/// Damping of each joint, N m s/rad (the joint brake's).
-const DAMPING_NM_S: [f32; JOINTS] = [40.0, 60.0, 60.0, 2.0, 2.0, 2.0];
+/// Stiffness of each joint's spring to its reference, N m/rad: stiff
+/// enough that the friction the feed-forward leaves (the true friction
+/// is within 30 % of the table's) lags a joint by under 10 mrad, so it
+/// turns smoothly rather than sticking and slipping.
+const STIFFNESS_NM: [f32; JOINTS] = [1500.0, 3000.0, 1500.0, 60.0, 60.0, 40.0];
+/// Damping of each joint, N m s/rad: about 0.7 of critical with the arm's
+/// inertia (armature included) at the ready posture.
+const DAMPING_NM_S: [f32; JOINTS] = [100.0, 180.0, 60.0, 4.0, 4.0, 3.0];
+/// The share of the table's friction fed forward: the lower end of the
+/// true friction's spread, so the feed-forward never drives a joint ahead
+/// of its reference.
+const FRICTION_FEED_FORWARD_SHARE: f32 = 0.7;
 /// The speed observer's bandwidth, rad/s, and the largest jump it accepts.
 const OBSERVER_BANDWIDTH_RAD_S: f32 = 150.0;
 const OBSERVER_MAX_JUMP_RAD: f32 = 0.05;
@@ -455,7 +463,8 @@ impl PowerOnHoming {
             self.reference.get(j).map_or(0.0, |r| r.speed_rad_s)
         });
         let gravity = TaskSpaceModel::gravity_torque(&self.model, &q);
-        let friction = TaskSpaceModel::friction_torque(&self.model, &speed);
+        let friction =
+            TaskSpaceModel::friction_torque(&self.model, &speed) * FRICTION_FEED_FORWARD_SHARE;
         let limits = TaskSpaceModel::torque_limits(&self.model);
         core::array::from_fn(|j| {
             let reference = self.reference.get(j).copied().unwrap_or_default();
