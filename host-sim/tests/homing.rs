@@ -50,7 +50,10 @@ fn a_thousand_power_ons_home_every_joint_to_the_count() {
     );
     // Slow and short: about the search speed, and within the search span
     // (1.5 index pitches, 0.18 rad at most) of where the arm stood.
-    assert!(worst_speed < 2.0 * f64::from(SEARCH_SPEED_RAD_S), "{worst_speed}");
+    assert!(
+        worst_speed < 2.0 * f64::from(SEARCH_SPEED_RAD_S),
+        "{worst_speed}"
+    );
     assert!(worst_excursion < 0.2, "{worst_excursion}");
 }
 
@@ -73,7 +76,10 @@ fn a_potentiometer_reading_no_number_stops_homing_with_its_cause() {
     let t = trial(&broken(HomingFault::PotNotANumber { joint: 4 }), 4);
     let error = t.error.clone().unwrap_or_default();
     assert!(t.homed_offsets.is_none(), "{t:?}");
-    assert!(error.contains("joint 5: potentiometer reads no number"), "{error}");
+    assert!(
+        error.contains("joint 5: potentiometer reads no number"),
+        "{error}"
+    );
     // Stopped at once: the arm never moved off its power-on posture.
     assert!(t.max_excursion_rad < 0.01, "{t:?}");
 }
@@ -142,4 +148,3 @@ fn the_pick_succeeds_after_homing() {
         assert_eq!(run.result, PickResult::Success, "seed {seed}");
     }
 }
-

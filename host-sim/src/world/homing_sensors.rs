@@ -15,7 +15,8 @@
 //!   the commissioning data the controller holds). The pulse sits on a
 //!   count edge: the counter, less its offset, reads
 //!   `round(index_rad * counts_per_rad)` there, and the board latches that
-//!   count plus the offset when the joint passes it, either way.
+//!   count plus the offset when the joint passes it, either way, and holds
+//!   it until the next pulse (a capture register).
 //!
 //! Faults ([`HomingFault`]) break one joint's channel for the tests.
 
@@ -229,9 +230,8 @@ impl HomingSensors {
                     raw[j] < index && index <= last[j]
                 };
                 if passed {
-                    self.latched[j] = Some(
-                        (index as i32).wrapping_add(self.counter_offset_counts[j]),
-                    );
+                    self.latched[j] =
+                        Some((index as i32).wrapping_add(self.counter_offset_counts[j]));
                 }
             }
         }
@@ -259,9 +259,10 @@ impl HomingSensors {
         })
     }
 
-    /// The index counts latched since the last call.
-    pub fn take_latched(&mut self) -> [Option<i32>; JOINTS] {
-        core::mem::replace(&mut self.latched, [None; JOINTS])
+    /// Each joint's count at its last index pulse (held until the next),
+    /// `None` before the first.
+    pub fn latched(&self) -> [Option<i32>; JOINTS] {
+        self.latched
     }
 }
 
@@ -285,11 +286,14 @@ mod tests {
         q[1] = index_rad + 0.001;
         s.track(&q);
         let expected = (s.index_count(1, 3) as i32).wrapping_add(s.counter_offsets()[1]);
-        assert_eq!(s.take_latched()[1], Some(expected));
-        assert_eq!(s.take_latched()[1], None);
+        assert_eq!(s.latched()[1], Some(expected));
+        // Held until the next pulse; back through the same index, the same count.
+        q[1] = index_rad + 0.002;
+        s.track(&q);
+        assert_eq!(s.latched()[1], Some(expected));
         q[1] = index_rad - 0.001;
         s.track(&q);
-        assert_eq!(s.take_latched()[1], Some(expected));
+        assert_eq!(s.latched()[1], Some(expected));
     }
 
     #[test]
@@ -299,7 +303,7 @@ mod tests {
         s.track(&q);
         q[2] = 1.0;
         s.track(&q);
-        assert_eq!(s.take_latched()[2], None);
+        assert_eq!(s.latched()[2], None);
         let mut s = sensors(Some(HomingFault::PotNotANumber { joint: 4 }));
         assert!(s.potentiometers(&q)[4].is_nan());
     }

@@ -7,13 +7,13 @@ use heapless::{Deque, Vec};
 
 use super::homing::HomingError;
 use super::link::LinkResponder;
-use super::power_on_homing::{self, HomedOffsets, HomingStage, PowerOnHoming};
 use super::pick::cell::ConfigError;
 use super::pick::handoff::{ControlEvent, JobTicket, VisionNews, WorkItem};
 use super::pick::{PickController, PickParts, MAX_TICK_MESSAGES};
+use super::power_on_homing::{self, HomedOffsets, HomingStage, PowerOnHoming};
 use crate::protocol::{
     ActuatorCommand, CalibrationReport, CellConfig, DecodeError, ErrorCode, GripperCommand,
-    Message, PickPhase, PickTelemetry, SensorSample,
+    Message, SensorSample,
 };
 use crate::safety::{check_reconfigure, CellState, EncoderMotion, ReconfigureRefusal};
 
@@ -64,6 +64,7 @@ pub struct ControllerApp {
 #[derive(Debug, Clone)]
 struct HomingRun {
     homing: PowerOnHoming,
+    counts_per_rad: [f32; crate::safety::JOINTS],
     telemetry_period_ticks: u16,
     ticks: u32,
     last: Option<(u32, u64, ActuatorCommand)>,
@@ -198,12 +199,15 @@ impl ControllerApp {
             HomingStage::Homed(offsets) => {
                 self.offsets = Some(offsets);
                 self.homed = Some(offsets);
+                // The pick's samples are homed from here: speeds start over.
+                self.motion = EncoderMotion::new(&run.counts_per_rad);
+                self.joint_speed_rad_s = None;
                 self.homing = None;
             }
             HomingStage::Failed(error) => {
                 let period = u32::from(run.telemetry_period_ticks.max(1));
                 if run.ticks % period == 0 {
-                    let _ = out.push(Message::Telemetry(homing_fault_telemetry(
+                    let _ = out.push(Message::Telemetry(power_on_homing::fault_telemetry(
                         sample,
                         &error,
                         self.link.status().frames_rejected,
@@ -348,6 +352,7 @@ impl ControllerApp {
         self.homing = match PowerOnHoming::new(&config.joint_counts_per_rad) {
             Ok(homing) => Some(HomingRun {
                 homing,
+                counts_per_rad: config.joint_counts_per_rad,
                 telemetry_period_ticks: config.telemetry_period_ticks,
                 ticks: 0,
                 last: None,
@@ -374,35 +379,6 @@ impl ControllerApp {
                 parts.control.on_news(&news);
             }
         }
-    }
-}
-
-/// The telemetry that tells the host homing stopped, and why.
-fn homing_fault_telemetry(
-    sample: &SensorSample,
-    error: &HomingError,
-    frames_rejected: u32,
-) -> PickTelemetry {
-    PickTelemetry {
-        time_us: sample.time_us,
-        phase: PickPhase::Faulted,
-        fault: Some(power_on_homing::fault_cause(error)),
-        theta_rad: 0.0,
-        omega_rad_s: 0.0,
-        sigma_theta_rad: 0.0,
-        sigma_omega_rad_s: 0.0,
-        part_base_m: None,
-        part_yaw_base_rad: 0.0,
-        part_velocity_base_m_s: [0.0; 3],
-        part_sigma_m: 0.0,
-        tool_base_m: [0.0; 3],
-        tool_reference_base_m: [0.0; 3],
-        tool_yaw_rad: 0.0,
-        tool_reference_yaw_rad: 0.0,
-        frames_paired: 0,
-        frames_unpaired: 0,
-        saturated_ticks: 0,
-        frames_rejected,
     }
 }
 

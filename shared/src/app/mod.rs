@@ -12,11 +12,11 @@
 
 mod controller;
 pub mod homing;
-pub mod power_on_homing;
 pub mod joint_observer;
 pub mod joint_speed;
 mod link;
 pub mod pick;
+pub mod power_on_homing;
 pub mod tool;
 pub mod vision;
 

@@ -32,7 +32,7 @@ use crate::app::homing::{HomingError, IndexGrid, JointHoming, JointHomingSpec, J
 use crate::app::joint_observer::JointObserver;
 use crate::control::TaskSpaceModel;
 use crate::kernels::micros_to_seconds;
-use crate::protocol::{FaultCause, SensorSample};
+use crate::protocol::{FaultCause, PickPhase, PickTelemetry, SensorSample};
 use crate::robot::table::GEAR_RATIO;
 use crate::robot::{DriveOptions, JointVector, Puma560};
 
@@ -110,6 +110,25 @@ impl HomedOffsets {
     pub const ZERO: Self = Self {
         counts: [0; JOINTS],
     };
+
+    /// Offsets good to the potentiometers' tolerance, from one sample's
+    /// potentiometers: for the drive interlock's soft limits while homing
+    /// (a joint whose potentiometer reads no number gets none).
+    pub fn from_potentiometers(sample: &SensorSample, counts_per_rad: &[f32; JOINTS]) -> Self {
+        Self {
+            counts: core::array::from_fn(|j| {
+                let count = sample.joint_counts.get(j).copied().unwrap_or(0);
+                let pot = sample.joint_pots_rad.get(j).copied().unwrap_or(f32::NAN);
+                let per_rad = counts_per_rad.get(j).copied().unwrap_or(0.0);
+                let at_pot = f64::from(pot) * f64::from(per_rad);
+                if at_pot.is_finite() && at_pot.abs() < f64::from(i32::MAX) {
+                    count.wrapping_sub(libm::round(at_pot) as i32)
+                } else {
+                    0
+                }
+            }),
+        }
+    }
 
     /// `sample` as a counter zeroed at q = 0 would read it: its counts and
     /// its latched index counts less the offsets. Six subtractions: all that
@@ -331,7 +350,10 @@ impl PowerOnHoming {
                             let at = *since.get_or_insert(self.now_s);
                             if self.now_s - at > STALL_LIMIT_S {
                                 let per_rad = joint_spec(&self.specs, j).counts_per_rad;
-                                let from = self.start_counts.and_then(|s| s.get(j).copied()).unwrap_or(count);
+                                let from = self
+                                    .start_counts
+                                    .and_then(|s| s.get(j).copied())
+                                    .unwrap_or(count);
                                 return Err(HomingError::IndexNotSeen {
                                     joint: j,
                                     travelled_rad: (count.wrapping_sub(from) as f32 / per_rad)
@@ -499,6 +521,36 @@ fn joint_spec(specs: &[JointHomingSpec; JOINTS], j: usize) -> JointHomingSpec {
         counts_per_rad: 1.0,
         search_span_rad: 0.0,
     })
+}
+
+/// The telemetry that tells the host homing stopped, and why (the pick
+/// never started: nothing but the fault and the link's count).
+pub fn fault_telemetry(
+    sample: &SensorSample,
+    error: &HomingError,
+    frames_rejected: u32,
+) -> PickTelemetry {
+    PickTelemetry {
+        time_us: sample.time_us,
+        phase: PickPhase::Faulted,
+        fault: Some(fault_cause(error)),
+        theta_rad: 0.0,
+        omega_rad_s: 0.0,
+        sigma_theta_rad: 0.0,
+        sigma_omega_rad_s: 0.0,
+        part_base_m: None,
+        part_yaw_base_rad: 0.0,
+        part_velocity_base_m_s: [0.0; 3],
+        part_sigma_m: 0.0,
+        tool_base_m: [0.0; 3],
+        tool_reference_base_m: [0.0; 3],
+        tool_yaw_rad: 0.0,
+        tool_reference_yaw_rad: 0.0,
+        frames_paired: 0,
+        frames_unpaired: 0,
+        saturated_ticks: 0,
+        frames_rejected,
+    }
 }
 
 /// The pick's fault cause for a homing error.

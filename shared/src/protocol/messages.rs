@@ -75,13 +75,16 @@ pub struct SensorSample {
     /// its commissioning scale): the coarse angle homing starts from. Added
     /// in v5.
     pub joint_pots_rad: [f32; JOINTS],
-    /// Each joint's counter as its index pulse latched it since the last
-    /// sample, if a pulse came: homing's exact reference. Added in v5.
+    /// Each joint's counter as its last index pulse latched it (the board's
+    /// capture register: it holds until the next pulse), `None` before the
+    /// first pulse since power-on: homing's exact reference. Held, not
+    /// cleared per sample, so a sample the controller never reads (a board
+    /// running free) loses no pulse. Added in v5.
     pub joint_index_counts: [Option<i32>; JOINTS],
 }
 
 impl SensorSample {
-    /// No index pulse latched in any joint since the last sample.
+    /// No index pulse latched in any joint since power-on.
     pub const NO_INDEX: [Option<i32>; JOINTS] = [None; JOINTS];
 }
 

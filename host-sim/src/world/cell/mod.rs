@@ -230,7 +230,7 @@ impl World {
             conveyor_counts: self.conveyor.encoder_raw(t),
             part_in_gripper: matches!(self.part, PartState::Held { .. }),
             joint_pots_rad: self.homing_sensors.potentiometers(&q),
-            joint_index_counts: self.homing_sensors.take_latched(),
+            joint_index_counts: self.homing_sensors.latched(),
         };
         self.sensor_seq = self.sensor_seq.wrapping_add(1);
         sample
