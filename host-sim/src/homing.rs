@@ -77,9 +77,8 @@ pub fn run_homing_trial(experiment: &PickExperiment, seed: u64) -> Result<Homing
         if now > HOMING_TIME_LIMIT_S {
             bail!("seed {seed}: homing still running after {now:.1} s");
         }
-        match app.homing_stage() {
-            Some(stage @ (HomingStage::Homed(_) | HomingStage::Failed(_))) => break stage,
-            _ => {}
+        if let Some(stage @ (HomingStage::Homed(_) | HomingStage::Failed(_))) = app.homing_stage() {
+            break stage;
         }
         let sample = world.sensor_sample();
         out.clear();
@@ -92,17 +91,26 @@ pub fn run_homing_trial(experiment: &PickExperiment, seed: u64) -> Result<Homing
         };
         world.apply(&command)?;
         let truth = world.truth();
-        for j in 0..JOINTS {
-            if truth.qd_rad_s[j].abs() > max_speed {
-                max_speed = truth.qd_rad_s[j].abs();
+        for (j, ((qd, q), q0)) in truth
+            .qd_rad_s
+            .iter()
+            .zip(truth.q_rad.iter())
+            .zip(start.iter())
+            .enumerate()
+        {
+            if qd.abs() > max_speed {
+                max_speed = qd.abs();
                 max_speed_joint = j;
                 max_speed_at_s = truth.time_s;
             }
-            max_excursion = max_excursion.max((truth.q_rad[j] - start[j]).abs());
+            max_excursion = max_excursion.max((q - q0).abs());
         }
     };
     let end = world.truth().q_rad;
-    let end_offset_rad = (0..JOINTS).fold(0.0_f64, |w, j| w.max((end[j] - start[j]).abs()));
+    let end_offset_rad = end
+        .iter()
+        .zip(start.iter())
+        .fold(0.0_f64, |w, (q, q0)| w.max((q - q0).abs()));
     Ok(HomingTrial {
         seed,
         true_offsets: world.homing_sensors().counter_offsets(),

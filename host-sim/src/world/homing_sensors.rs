@@ -313,9 +313,9 @@ mod tests {
         let s = sensors(None);
         let q = JointVector::repeat(0.25);
         let counters = s.counters(&q);
-        for j in 0..JOINTS {
+        for (j, counter) in counters.iter().enumerate() {
             let raw = (0.25 * s.counts_per_rad[j]).floor() as i32;
-            assert_eq!(counters[j], raw.wrapping_add(s.counter_offsets()[j]));
+            assert_eq!(*counter, raw.wrapping_add(s.counter_offsets()[j]));
         }
         assert!(s.counter_offsets().iter().any(|o| *o != 0));
     }
