@@ -35,6 +35,9 @@ pub struct HomingTrial {
     pub max_excursion_rad: f64,
     /// How far the arm ended from where it stood at power-on, worst joint, rad.
     pub end_offset_rad: f64,
+    /// Every counter reads at the end what it read at power-on (the pick
+    /// starts from the very counts it would have without homing).
+    pub back_on_power_on_counts: bool,
 }
 
 impl HomingTrial {
@@ -72,6 +75,7 @@ pub fn run_homing_trial(experiment: &PickExperiment, seed: u64) -> Result<Homing
     let mut max_speed: f64 = 0.0;
     let mut max_excursion: f64 = 0.0;
     let (mut max_speed_joint, mut max_speed_at_s) = (0, 0.0);
+    let mut counts: Option<([i32; JOINTS], [i32; JOINTS])> = None;
     let stage = loop {
         let now = world.time_s();
         if now > HOMING_TIME_LIMIT_S {
@@ -81,6 +85,8 @@ pub fn run_homing_trial(experiment: &PickExperiment, seed: u64) -> Result<Homing
             break stage;
         }
         let sample = world.sensor_sample();
+        let first = counts.map_or(sample.joint_counts, |(first, _)| first);
+        counts = Some((first, sample.joint_counts));
         out.clear();
         app.on_message(&Message::SensorSample(sample), &mut out);
         let Some(command) = out.iter().find_map(|m| match m {
@@ -125,5 +131,6 @@ pub fn run_homing_trial(experiment: &PickExperiment, seed: u64) -> Result<Homing
         max_speed_at_s,
         max_excursion_rad: max_excursion,
         end_offset_rad,
+        back_on_power_on_counts: counts.is_some_and(|(first, last)| first == last),
     })
 }
