@@ -3,9 +3,11 @@
 //! its torques go out through the same interlock and outputs as the
 //! pick's. Once homed, the loop hands the pick each sample less the
 //! counters' offsets: six subtractions, the pick's period otherwise
-//! unchanged. The offsets outlive a reconfiguration (the counters keep
-//! counting); a failed homing is held, reported in telemetry every
-//! telemetry period, and starts over with the next configuration.
+//! unchanged. Every accepted configuration homes again (it is the restart
+//! after a stop, after which the arm may have been moved with the drives
+//! off, or, in the simulator, be another cell's); a failed homing is held,
+//! reported in telemetry every telemetry period, and starts over with the
+//! next configuration.
 
 use shared::app::homing::HomingError;
 use shared::app::power_on_homing::{HomedOffsets, HomingStage, PowerOnHoming};
@@ -16,8 +18,6 @@ pub struct Homing {
     run: Option<Run>,
     /// The offsets the pick's samples are corrected with, once known.
     offsets: Option<HomedOffsets>,
-    /// What homing found this power-on, kept for the next configuration.
-    homed: Option<HomedOffsets>,
 }
 
 /// A homing under way (or failed).
@@ -55,23 +55,17 @@ impl Homing {
         Self {
             run: None,
             offsets: None,
-            homed: None,
         }
     }
 
-    /// A configuration was accepted: homing starts unless the counters are
-    /// homed already or need none. Out of line: the homing's model is
+    /// A configuration was accepted: homing starts unless the counters
+    /// need none. Out of line: the homing's model is
     /// built in this frame, not in the control loop's.
     #[inline(never)]
     pub fn configure(&mut self, config: &CellConfig) {
         if !config.home_at_power_on {
             self.run = None;
             self.offsets = Some(HomedOffsets::ZERO);
-            return;
-        }
-        if let Some(homed) = self.homed {
-            self.run = None;
-            self.offsets = Some(homed);
             return;
         }
         self.offsets = None;
@@ -145,7 +139,6 @@ impl Homing {
             HomingStage::Homed(offsets) if !repeated => {
                 defmt::info!("homing: done, offsets {}", offsets.counts);
                 self.offsets = Some(offsets);
-                self.homed = Some(offsets);
                 homed = true;
             }
             HomingStage::Failed(error) => {

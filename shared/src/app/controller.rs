@@ -52,10 +52,10 @@ pub struct ControllerApp {
     /// Homing at power-on, while it runs or after it failed
     /// ([`CellConfig::home_at_power_on`]).
     homing: Option<HomingRun>,
-    /// The counters' offsets once homed (kept across configurations: the
-    /// counters keep counting), or zero where no homing is asked for.
+    /// The counters' offsets once homed, or zero where no homing is asked
+    /// for.
     offsets: Option<HomedOffsets>,
-    /// What homing found, kept for the next configuration that asks for it.
+    /// What the last homing found.
     homed: Option<HomedOffsets>,
 }
 
@@ -336,18 +336,16 @@ impl ControllerApp {
         }
     }
 
-    /// A new configuration: homing starts unless the counters are homed
-    /// already or need no homing.
+    /// A new configuration: homing starts unless the counters need none.
+    /// Every configuration homes again: it is the restart after a stop,
+    /// after which the arm may have been moved with the drives off.
     fn start_homing(&mut self, config: &CellConfig) {
         if !config.home_at_power_on {
             self.homing = None;
             self.offsets = Some(HomedOffsets::ZERO);
             return;
         }
-        if let Some(homed) = self.homed {
-            self.offsets = Some(homed);
-            return;
-        }
+        self.homed = None;
         self.offsets = None;
         self.homing = match PowerOnHoming::new(&config.joint_counts_per_rad) {
             Ok(homing) => Some(HomingRun {
