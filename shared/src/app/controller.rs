@@ -613,6 +613,44 @@ mod tests {
     }
 
     #[test]
+    fn a_homing_fault_holds_the_pick_back_and_reports_its_cause() {
+        let mut app = ControllerApp::new("test", 1000);
+        let mut out = Vec::new();
+        app.on_message(
+            &Message::Hello {
+                protocol_version: PROTOCOL_VERSION,
+                peer_name: heapless::String::new(),
+            },
+            &mut out,
+        );
+        let mut homing = config();
+        homing.home_at_power_on = true;
+        app.on_message(&Message::Configure(homing), &mut out);
+        assert!(matches!(app.homing_stage(), Some(HomingStage::Coarse)));
+        let mut broken = sample(1);
+        broken.joint_pots_rad = [0.1, f32::NAN, 0.2, 0.0, 0.3, 0.0];
+        let out = exchange(&mut app, &broken);
+        assert!(matches!(out.first(), Some(Message::ActuatorCommand(c)) if c.seq == 1));
+        assert_eq!(
+            app.homing_error(),
+            Some(HomingError::PotentiometerNotFinite { joint: 1 })
+        );
+        let telemetry = out.iter().find_map(|m| match m {
+            Message::Telemetry(t) => Some(*t),
+            _ => None,
+        });
+        assert_eq!(
+            telemetry.map(|t| (t.phase, t.fault)),
+            Some((
+                PickPhase::Faulted,
+                Some(crate::protocol::FaultCause::HomingPotentiometer)
+            ))
+        );
+        // The pick never ran a period.
+        assert_eq!(app.pick().map(PickController::phase), Some(PickPhase::Idle));
+    }
+
+    #[test]
     fn telemetry_reports_every_refused_frame() {
         let mut app = configured();
         exchange(&mut app, &sample(1));
