@@ -263,6 +263,7 @@ fn pick_tick(timer: &timer::DualTimer, model: &Puma560<f32>, q: &Joints<f32>) {
         drop_off_base_m: [0.0, 0.55, 0.3],
         camera_period_ms: 200,
         telemetry_period_ticks: 20,
+        home_at_power_on: false,
     };
     let Ok(mut pick) = PickController::new(&config, PickSettings::default(), 1) else {
         hprintln!("  pick tick: configuration refused");
@@ -280,6 +281,8 @@ fn pick_tick(timer: &timer::DualTimer, model: &Puma560<f32>, q: &Joints<f32>) {
             ],
             conveyor_counts: seq / 4,
             part_in_gripper: false,
+            joint_pots_rad: [0.0; 6],
+            joint_index_counts: SensorSample::NO_INDEX,
         }
     };
     // Into the search arc (the first sample starts it).

@@ -43,6 +43,8 @@ fn fallback_message(bytes: &[u8]) -> Message {
         joint_counts: [value as i32, -(value as i32 >> 1), 3, 0, -7, 1 << 20],
         conveyor_counts: value.rotate_left(9),
         part_in_gripper: value & 1 == 1,
+        joint_pots_rad: [0.0; 6],
+        joint_index_counts: SensorSample::NO_INDEX,
     })
 }
 

@@ -11,11 +11,13 @@
 //! - [`link`]: links to the controller (in process, emulator UART over TCP, serial port) and the link check.
 //! - [`vision_check`]: the mark detector on rendered camera frames, against the truth.
 //! - [`geometry`]: small geometric helpers with the contract's conventions.
+//! - [`homing`]: power-on homing trials against the drawn counter offsets.
 
 pub mod accuracy;
 pub mod calibration;
 pub mod commands;
 pub mod geometry;
+pub mod homing;
 pub mod link;
 pub mod log;
 pub mod pick;

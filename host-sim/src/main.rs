@@ -6,8 +6,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use host_sim::commands::{
-    accuracy, calibrate, calibration_demo, faults, free_run, link_check, montecarlo, record, run,
-    vision_check,
+    accuracy, calibrate, calibration_demo, faults, free_run, homing, link_check, montecarlo,
+    record, run, vision_check,
 };
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
@@ -28,6 +28,9 @@ enum Command {
     /// Seeded faulty picks (vision, encoder, conveyor, link and stall faults):
     /// the table of fault against outcome, and every safety invariant checked.
     Faults(faults::Args),
+    /// Seeded power-ons homed (potentiometers, index pulses) and scored
+    /// against the drawn counter offsets.
+    Homing(homing::Args),
     /// Self-calibration alone on one recorded workcell, against the paper's figures.
     CalibrationDemo(calibration_demo::Args),
     /// Record a synthetic observation log (and LOG.truth.json) from a random workcell.
@@ -53,6 +56,7 @@ fn main() -> ExitCode {
         Some(Command::Run(args)) => run::run(args),
         Some(Command::Montecarlo(args)) => montecarlo::run(args),
         Some(Command::Faults(args)) => faults::run(args),
+        Some(Command::Homing(args)) => homing::run(args),
         Some(Command::CalibrationDemo(args)) => calibration_demo::run(args),
         Some(Command::Record(args)) => record::run(args),
         Some(Command::Calibrate(args)) => calibrate::run(args),

@@ -19,5 +19,6 @@ pub fn test_cell_config(conveyor_counts_per_rev: u32, part_feature_count: u8) ->
         drop_off_base_m: [0.0, 0.55, 0.3],
         camera_period_ms: 200,
         telemetry_period_ticks: 1,
+        home_at_power_on: false,
     }
 }

@@ -31,6 +31,7 @@ use shared::app::new_report;
 use shared::app::pick::handoff::{ControlEvent, WorkItem};
 use shared::app::pick::settings::PickSettings;
 use shared::app::pick::{PickController, MAX_TICK_MESSAGES};
+use shared::app::power_on_homing;
 use shared::protocol::{
     FaultCause, GripperCommand, Message, PickPhase, SensorSample, TriggerEvent,
 };
@@ -44,6 +45,7 @@ use super::channels::{
     Configured, COMMANDS, CONTROL_CONFIG, NEWS, NEWS_READY, OUTGOING, REPORTS, SAMPLES, TRIGGERS,
     TRIGGER_EVENTS, WORK,
 };
+use super::homing::Homing;
 use super::phase_log;
 use super::stats;
 use crate::board::{active, fail_safe, BoardError, ControlSource, CycleCounter, PlantIo, Watchdog};
@@ -230,18 +232,19 @@ fn parking_period(
     output
 }
 
-/// Publishes whether a configuration may replace `controller` now (see
-/// [`RECONFIGURE_REFUSAL`]).
+/// Publishes whether a configuration may replace the pick (in `phase`,
+/// its gripper holding a part or not) now (see [`RECONFIGURE_REFUSAL`]).
 fn publish_reconfigure(
-    controller: &PickController,
+    phase: PickPhase,
+    gripper_holds: bool,
     speeds: Option<[f32; 6]>,
     drives_on: bool,
     source: ControlSource,
 ) {
     let verdict = check_reconfigure(&CellState {
-        phase: Some(controller.phase()),
+        phase: Some(phase),
         joint_speed_rad_s: speeds,
-        gripper_holds: controller.gripper_holds(),
+        gripper_holds,
         drives_on,
         drives_off_required: source == ControlSource::Ticker,
     });
@@ -319,6 +322,7 @@ async fn next_sample(
     clock: &mut PeriodClock,
     plant: &mut active::Plant,
     pick: Option<&PickController>,
+    homing: bool,
     reads: &mut TickerReads,
 ) -> Reading {
     match source {
@@ -353,13 +357,25 @@ async fn next_sample(
                     if reading.drive_fault {
                         fail_safe::latch(BoardFault::DriveFault);
                     }
-                    let sample = SensorSample {
+                    let mut sample = SensorSample {
                         seq: TICKER_SEQ.fetch_add(1, Ordering::Relaxed),
                         time_us,
                         joint_counts: reading.joint_counts,
                         conveyor_counts: reading.conveyor_counts,
                         part_in_gripper: reading.part_in_gripper,
+                        joint_pots_rad: [f32::NAN; 6],
+                        joint_index_counts: SensorSample::NO_INDEX,
                     };
+                    if homing {
+                        match plant.read_homing_inputs() {
+                            Ok(inputs) => {
+                                sample.joint_pots_rad = inputs.joint_pots_rad;
+                                sample.joint_index_counts = inputs.joint_index_counts;
+                            }
+                            // Homing stops on the NaN potentiometers.
+                            Err(e) => defmt::warn!("control loop: {}", e),
+                        }
+                    }
                     Reading::Sample { sample, now_us }
                 }
                 Ok(None) => Reading::Unchanged,
@@ -392,6 +408,7 @@ pub async fn control_loop(
     let mut deadline = DeadlineMonitor::new();
     let mut reported_fault: Option<InterlockFault> = None;
     let mut pick: Option<(u32, PickController)> = None;
+    let mut homing = Homing::new();
     let mut reported_estimate = 0u32;
     let mut last_phase = PickPhase::Idle;
     let mut clock = PeriodClock::new();
@@ -402,11 +419,15 @@ pub async fn control_loop(
     // The period's budget in the counter's units at the board's nominal clock.
     let budget = active::CPU_HZ / CONTROL_RATE_HZ;
     loop {
+        // No camera trigger while homing: the pick has not started.
         let reading = next_sample(
             source,
             &mut clock,
             &mut plant,
-            pick.as_ref().map(|(_, controller)| controller),
+            pick.as_ref()
+                .filter(|_| !homing.active())
+                .map(|(_, controller)| controller),
+            homing.active(),
             &mut reads,
         )
         .await;
@@ -423,6 +444,9 @@ pub async fn control_loop(
             // this period's control cost or a deadline miss.
             let reconfigure_started = cycles.now();
             let accepted = configure(&mut pick, &mut reported_estimate, &configured);
+            if accepted {
+                homing.configure(&configured.config);
+            }
             let reconfigure_cost = cycles
                 .now()
                 .wrapping_sub(reconfigure_started)
@@ -464,6 +488,83 @@ pub async fn control_loop(
             }
             continue;
         };
+        if let Some(period) = homing.period(&sample) {
+            let started = cycles.now();
+            // Without the host, parking engages the brakes and turns the
+            // drives off after its bounded wait, as for the pick.
+            let mut command = period.command;
+            let drives = interlock_period(
+                &mut interlock,
+                &mut motion,
+                &mut speeds,
+                &period.interlock_sample,
+                &command.joint_torque_nm,
+                period.phase,
+                period.repeated,
+            );
+            if interlock.fault() != reported_fault {
+                reported_fault = interlock.fault();
+                if let Some(fault) = reported_fault {
+                    defmt::error!(
+                        "drive interlock while homing: {}; drives off until the host acknowledges",
+                        fault
+                    );
+                }
+            }
+            command.joint_torque_nm = drives.torque_nm;
+            let park = parking_period(&mut parking, source, now_us, period.phase, speeds);
+            let drives_on = drives.enable && park.drives_allowed;
+            publish_reconfigure(period.phase, false, speeds, drives_on, source);
+            match source {
+                ControlSource::LockStep => {
+                    if COMMANDS.try_send(command).is_err() {
+                        stats::count_dropped_message();
+                    }
+                }
+                ControlSource::Ticker if !drives_on => plant.disable(),
+                ControlSource::Ticker => {
+                    if let Err(e) = plant.apply(&command.joint_torque_nm, false) {
+                        defmt::error!("control loop: {}; drives off", e);
+                        fail_safe::latch(BoardFault::DriveFault);
+                    }
+                    plant.set_brakes(park.brake_engaged);
+                }
+            }
+            if let Some(error) = period.report {
+                send(Message::Telemetry(power_on_homing::fault_telemetry(
+                    &sample,
+                    &error,
+                    stats::FRAMES_REJECTED.load(Ordering::Relaxed),
+                )));
+            }
+            if period.homed {
+                // The pick's samples are homed counts: the interlock's
+                // speeds start over on them.
+                if let Some(counts_per_rad) = homing.counts_per_rad() {
+                    motion = EncoderMotion::new(&counts_per_rad);
+                }
+                speeds = None;
+            }
+            let cost = cycles
+                .now()
+                .wrapping_sub(started)
+                .saturating_mul(cycles.scale());
+            if !period.repeated {
+                let missed = cost > budget;
+                stats::record_control(cost, missed, 0, period.phase);
+                if source == ControlSource::Ticker
+                    && deadline.period(missed)
+                    && fail_safe::latched().is_none()
+                {
+                    fail_safe::latch(BoardFault::DeadlineMissed);
+                }
+            }
+            continue;
+        }
+        let mut sample = sample;
+        if let Some(offsets) = homing.offsets() {
+            offsets.apply(&mut sample);
+        }
         drain_news(controller);
         if source == ControlSource::LockStep {
             // Lock step: the plant waits for this period anyway, so wait for
@@ -526,7 +627,13 @@ pub async fn control_loop(
         command.joint_torque_nm = drives.torque_nm;
         let park = parking_period(&mut parking, source, now_us, controller.phase(), speeds);
         let drives_on = drives.enable && park.drives_allowed;
-        publish_reconfigure(controller, speeds, drives_on, source);
+        publish_reconfigure(
+            controller.phase(),
+            controller.gripper_holds(),
+            speeds,
+            drives_on,
+            source,
+        );
         match source {
             ControlSource::LockStep => {
                 if COMMANDS.try_send(command).is_err() {

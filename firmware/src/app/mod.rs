@@ -14,6 +14,7 @@
 
 mod channels;
 mod control_loop;
+mod homing;
 mod link;
 mod phase_log;
 pub mod stats;

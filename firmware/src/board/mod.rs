@@ -153,6 +153,13 @@ pub enum ControlSource {
     LockStep,
 }
 
+/// Homing's inputs (see [`PlantIo::read_homing_inputs`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HomingInputs {
+    pub joint_pots_rad: [f32; JOINTS],
+    pub joint_index_counts: [Option<i32>; JOINTS],
+}
+
 /// One reading of the plant's sensors.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PlantReading {
@@ -190,6 +197,17 @@ pub trait PlantIo {
     /// exposure. Without it the line goes (or stays) low: a pulse is one
     /// control period wide.
     fn read_sample(&mut self, camera_trigger: bool) -> Result<PlantReading, BoardError>;
+
+    /// Homing's inputs, read right after [`read_sample`](PlantIo::read_sample)
+    /// and only while homing (the ADC's conversions would otherwise cost
+    /// every pick period): each joint's potentiometer, rad, and its counter
+    /// as its last index pulse latched it (`None` before the first), on the
+    /// same scale as `read_sample`'s counts.
+    fn read_homing_inputs(&mut self) -> Result<HomingInputs, BoardError> {
+        Err(BoardError::NotOnThisBoard {
+            device: "potentiometers and index inputs",
+        })
+    }
 
     /// Drives the servo amplifiers with the joint torques (N m) and the
     /// gripper. Rejects a non-finite torque before any output changes (then

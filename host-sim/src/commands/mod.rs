@@ -11,6 +11,7 @@
 //! - [`calibrate`]: `host-sim calibrate`: calibration of a log.
 //! - [`accuracy`]: `host-sim accuracy`: Monte-Carlo accuracy of the self-calibration.
 //! - [`link_check`]: `host-sim link-check`: handshake and checked exchange with the controller.
+//! - [`homing`]: `host-sim homing`: seeded power-ons homed and scored against the drawn offsets.
 //! - [`free_run`]: `host-sim free-run`: one pick with the plant running free against the emulated board.
 //! - [`vision_check`]: `host-sim vision-check`: the mark detector on rendered frames against the truth.
 
@@ -19,6 +20,7 @@ pub mod calibrate;
 pub mod calibration_demo;
 pub mod faults;
 pub mod free_run;
+pub mod homing;
 pub mod link_check;
 pub mod montecarlo;
 pub mod record;

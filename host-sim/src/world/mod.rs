@@ -17,6 +17,8 @@
 //!   constants) and the amplifier's current lag and ripple.
 //! - [`conveyor`]: the disc with speed ripple and a wrapping quadrature encoder.
 //! - [`gripper`]: closes on the part only within a stated tolerance.
+//! - [`homing_sensors`]: the counters' power-on offsets, the potentiometers and
+//!   the index pulses homing reads.
 
 pub mod camera;
 pub mod cell;
@@ -26,6 +28,7 @@ pub mod drive;
 pub mod effector;
 pub mod generator;
 pub mod gripper;
+pub mod homing_sensors;
 pub mod plant;
 pub mod render;
 pub mod serve;

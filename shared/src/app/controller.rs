@@ -5,11 +5,16 @@
 
 use heapless::{Deque, Vec};
 
+use super::homing::HomingError;
 use super::link::LinkResponder;
 use super::pick::cell::ConfigError;
 use super::pick::handoff::{ControlEvent, JobTicket, VisionNews, WorkItem};
 use super::pick::{PickController, PickParts, MAX_TICK_MESSAGES};
-use crate::protocol::{CalibrationReport, CellConfig, DecodeError, ErrorCode, Message};
+use super::power_on_homing::{self, HomedOffsets, HomingStage, PowerOnHoming};
+use crate::protocol::{
+    ActuatorCommand, CalibrationReport, CellConfig, DecodeError, ErrorCode, GripperCommand,
+    Message, SensorSample,
+};
 use crate::safety::{check_reconfigure, CellState, EncoderMotion, ReconfigureRefusal};
 
 /// Replies one incoming message may produce.
@@ -44,6 +49,25 @@ pub struct ControllerApp {
     work: Option<Deque<WorkItem, WORK_SLOTS>>,
     /// Items refused because `work` was full (the firmware's handoffs dropped).
     work_dropped: u32,
+    /// Homing at power-on, while it runs or after it failed
+    /// ([`CellConfig::home_at_power_on`]).
+    homing: Option<HomingRun>,
+    /// The counters' offsets once homed, or zero where no homing is asked
+    /// for.
+    offsets: Option<HomedOffsets>,
+    /// What the last homing found.
+    homed: Option<HomedOffsets>,
+}
+
+/// Homing as the application runs it: the sequence, its telemetry's
+/// period, and the last command (a sample sent again gets it again).
+#[derive(Debug, Clone)]
+struct HomingRun {
+    homing: PowerOnHoming,
+    counts_per_rad: [f32; crate::safety::JOINTS],
+    telemetry_period_ticks: u16,
+    ticks: u32,
+    last: Option<(u32, u64, ActuatorCommand)>,
 }
 
 impl ControllerApp {
@@ -60,6 +84,9 @@ impl ControllerApp {
             joint_speed_rad_s: None,
             work: None,
             work_dropped: 0,
+            homing: None,
+            offsets: None,
+            homed: None,
         }
     }
 
@@ -129,11 +156,81 @@ impl ControllerApp {
         self.pick.as_ref().map(|parts| &parts.control)
     }
 
+    /// Where homing stands: `None` before a configuration that asks for it.
+    pub fn homing_stage(&self) -> Option<HomingStage> {
+        match (&self.homing, self.homed) {
+            (Some(run), _) => Some(run.homing.stage()),
+            (None, Some(offsets)) => Some(HomingStage::Homed(offsets)),
+            (None, None) => None,
+        }
+    }
+
+    /// The error homing stopped on, if it did.
+    pub fn homing_error(&self) -> Option<HomingError> {
+        self.homing.as_ref().and_then(|run| run.homing.error())
+    }
+
+    /// One homing period for `sample` (the pick waits until homing is done).
+    fn homing_period(&mut self, sample: &SensorSample, out: &mut Vec<Message, MAX_REPLIES>) {
+        let Some(run) = self.homing.as_mut() else {
+            return;
+        };
+        self.link.count_received();
+        if let Some((seq, time_us, command)) = run.last {
+            if seq == sample.seq && time_us == sample.time_us {
+                let _ = out.push(Message::ActuatorCommand(command));
+                return;
+            }
+        }
+        let torque = run.homing.period(sample);
+        let command = ActuatorCommand {
+            seq: sample.seq,
+            joint_torque_nm: torque,
+            gripper: GripperCommand::Open,
+            camera_trigger: None,
+        };
+        run.last = Some((sample.seq, sample.time_us, command));
+        run.ticks = run.ticks.wrapping_add(1);
+        self.joint_speed_rad_s = self.motion.update(&sample.joint_counts, sample.time_us).1;
+        self.link
+            .set_control_ticks(self.link.status().control_ticks.saturating_add(1));
+        let _ = out.push(Message::ActuatorCommand(command));
+        match run.homing.stage() {
+            HomingStage::Homed(offsets) => {
+                self.offsets = Some(offsets);
+                self.homed = Some(offsets);
+                // The pick's samples are homed from here: speeds start over.
+                self.motion = EncoderMotion::new(&run.counts_per_rad);
+                self.joint_speed_rad_s = None;
+                self.homing = None;
+            }
+            HomingStage::Failed(error) => {
+                let period = u32::from(run.telemetry_period_ticks.max(1));
+                if run.ticks % period == 0 {
+                    let _ = out.push(Message::Telemetry(power_on_homing::fault_telemetry(
+                        sample,
+                        &error,
+                        self.link.status().frames_rejected,
+                    )));
+                }
+            }
+            _ => {}
+        }
+    }
+
     /// Answers one decoded message into `out`.
     pub fn on_message(&mut self, message: &Message, out: &mut Vec<Message, MAX_REPLIES>) {
         let armed = self.link.session_open() && self.pick.is_some();
         match (message, armed) {
+            (Message::SensorSample(sample), true) if self.offsets.is_none() => {
+                self.homing_period(sample, out);
+            }
             (Message::SensorSample(sample), true) => {
+                let mut homed = *sample;
+                if let Some(offsets) = self.offsets.as_ref() {
+                    offsets.apply(&mut homed);
+                }
+                let sample = &homed;
                 self.link.count_received();
                 let mut extra: Vec<Message, MAX_TICK_MESSAGES> = Vec::new();
                 if let Some(parts) = self.pick.as_mut() {
@@ -176,7 +273,8 @@ impl ControllerApp {
                     let _ = out.push(message);
                 }
             }
-            (Message::CameraFeatures(frame), true) => {
+            // While homing, a camera frame has no trigger to pair with.
+            (Message::CameraFeatures(frame), true) if self.offsets.is_some() => {
                 if let Some(parts) = self.pick.as_mut() {
                     // A frame that cannot be paired is counted by the pick, not an error of the link.
                     match parts.pairer.on_frame(frame) {
@@ -219,6 +317,7 @@ impl ControllerApp {
                         self.reported_estimate = 0;
                         self.motion = EncoderMotion::new(&config.joint_counts_per_rad);
                         self.joint_speed_rad_s = None;
+                        self.start_homing(config);
                         if let Some(reply) = self.link.handle(message) {
                             let _ = out.push(reply);
                         }
@@ -235,6 +334,31 @@ impl ControllerApp {
                 }
             }
         }
+    }
+
+    /// A new configuration: homing starts unless the counters need none.
+    /// Every configuration homes again: it is the restart after a stop,
+    /// after which the arm may have been moved with the drives off.
+    fn start_homing(&mut self, config: &CellConfig) {
+        if !config.home_at_power_on {
+            self.homing = None;
+            self.offsets = Some(HomedOffsets::ZERO);
+            return;
+        }
+        self.homed = None;
+        self.offsets = None;
+        self.homing = match PowerOnHoming::new(&config.joint_counts_per_rad) {
+            Ok(homing) => Some(HomingRun {
+                homing,
+                counts_per_rad: config.joint_counts_per_rad,
+                telemetry_period_ticks: config.telemetry_period_ticks,
+                ticks: 0,
+                last: None,
+            }),
+            // The configuration's counts per radian were accepted by the
+            // pick, so this does not happen; nothing moves without homing.
+            Err(_) => None,
+        };
     }
 
     /// A frame the decoder refused: counted and reported.
@@ -382,6 +506,8 @@ mod tests {
             joint_counts: [0, -8_000, 16_000, 0, 8_000, 0],
             conveyor_counts: 3 * seq,
             part_in_gripper: false,
+            joint_pots_rad: [0.0; 6],
+            joint_index_counts: SensorSample::NO_INDEX,
         }
     }
 
@@ -484,6 +610,44 @@ mod tests {
         later.time_us += 1_000;
         exchange(&mut app, &later);
         assert_eq!(app.link().status().control_ticks, 2);
+    }
+
+    #[test]
+    fn a_homing_fault_holds_the_pick_back_and_reports_its_cause() {
+        let mut app = ControllerApp::new("test", 1000);
+        let mut out = Vec::new();
+        app.on_message(
+            &Message::Hello {
+                protocol_version: PROTOCOL_VERSION,
+                peer_name: heapless::String::new(),
+            },
+            &mut out,
+        );
+        let mut homing = config();
+        homing.home_at_power_on = true;
+        app.on_message(&Message::Configure(homing), &mut out);
+        assert!(matches!(app.homing_stage(), Some(HomingStage::Coarse)));
+        let mut broken = sample(1);
+        broken.joint_pots_rad = [0.1, f32::NAN, 0.2, 0.0, 0.3, 0.0];
+        let out = exchange(&mut app, &broken);
+        assert!(matches!(out.first(), Some(Message::ActuatorCommand(c)) if c.seq == 1));
+        assert_eq!(
+            app.homing_error(),
+            Some(HomingError::PotentiometerNotFinite { joint: 1 })
+        );
+        let telemetry = out.iter().find_map(|m| match m {
+            Message::Telemetry(t) => Some(*t),
+            _ => None,
+        });
+        assert_eq!(
+            telemetry.map(|t| (t.phase, t.fault)),
+            Some((
+                PickPhase::Faulted,
+                Some(crate::protocol::FaultCause::HomingPotentiometer)
+            ))
+        );
+        // The pick never ran a period.
+        assert_eq!(app.pick().map(PickController::phase), Some(PickPhase::Idle));
     }
 
     #[test]

@@ -182,6 +182,8 @@ mod tests {
             joint_counts: [0; JOINTS],
             conveyor_counts: 0,
             part_in_gripper: false,
+            joint_pots_rad: [0.0; 6],
+            joint_index_counts: SensorSample::NO_INDEX,
         })
     }
 

@@ -6,6 +6,7 @@
 //! - [`tool`]: the gripper's geometry (grasp point, the two marks the camera sees).
 //! - [`joint_observer`]: joint angles and speeds from quantised encoders.
 //! - [`homing`]: joint angles from incremental counters at power-on (potentiometers and index pulses).
+//! - [`power_on_homing`]: the homing sequence before the pick (the arm held and moved in joint space).
 //! - [`pick`]: the pick's state machine, fusion at control rate and background jobs.
 //! - [`vision`]: camera frames paired with their trigger's encoder values, as observations.
 
@@ -15,6 +16,7 @@ pub mod joint_observer;
 pub mod joint_speed;
 mod link;
 pub mod pick;
+pub mod power_on_homing;
 pub mod tool;
 pub mod vision;
 

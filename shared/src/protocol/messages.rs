@@ -1,6 +1,6 @@
-//! The messages of protocol v3 (v1's, with `TriggerEvent` and
+//! The messages of protocol v5 (v1's, with `TriggerEvent` and
 //! `CostUnit::Nanoseconds` appended in v2; `CellConfig` without the pixel
-//! noise in v3). They are postcard-encoded, so the order of
+//! noise in v3; the homing inputs in `SensorSample` and `CellConfig` in v5). They are postcard-encoded, so the order of
 //! fields and of enum variants is part of the wire format: append, never reorder.
 
 use heapless::{String, Vec};
@@ -71,6 +71,21 @@ pub struct SensorSample {
     pub conveyor_counts: u32,
     /// The gripper's part-present switch: its jaws are closed on a part.
     pub part_in_gripper: bool,
+    /// Each joint's potentiometer, radians (the board's ADC reading through
+    /// its commissioning scale): the coarse angle homing starts from. Added
+    /// in v5.
+    pub joint_pots_rad: [f32; JOINTS],
+    /// Each joint's counter as its last index pulse latched it (the board's
+    /// capture register: it holds until the next pulse), `None` before the
+    /// first pulse since power-on: homing's exact reference. Held, not
+    /// cleared per sample, so a sample the controller never reads (a board
+    /// running free) loses no pulse. Added in v5.
+    pub joint_index_counts: [Option<i32>; JOINTS],
+}
+
+impl SensorSample {
+    /// No index pulse latched in any joint since power-on.
+    pub const NO_INDEX: [Option<i32>; JOINTS] = [None; JOINTS];
 }
 
 /// Gripper jaws.

@@ -35,9 +35,12 @@ pub use messages::*;
 /// v4: `RuntimeReport::job_worst` per kind of job ([`JobCosts`]);
 /// `FaultCause::DiscOutOfReach` and `FaultCause::PartOutOfReach` (a layout
 /// the arm cannot serve stops with why; a v3 host could not decode them).
+/// v5: homing at power-on: `SensorSample::joint_pots_rad` and
+/// `SensorSample::joint_index_counts`, `CellConfig::home_at_power_on`,
+/// `FaultCause::HomingPotentiometer` and `FaultCause::HomingIndexNotSeen`.
 /// The handshake
 /// refuses any other version with `UnsupportedVersion` (detail: this one).
-pub const PROTOCOL_VERSION: u16 = 4;
+pub const PROTOCOL_VERSION: u16 = 5;
 
 #[cfg(test)]
 mod tests;

@@ -43,6 +43,12 @@ pub struct CellConfig {
     pub camera_period_ms: u16,
     /// Control periods between two telemetry messages (0: no telemetry).
     pub telemetry_period_ticks: u16,
+    /// The joint counters are incremental and started at zero wherever the
+    /// arm stood at power-on: the controller homes the joints
+    /// (potentiometers, then index pulses; `crate::app::power_on_homing`)
+    /// before the pick moves. False: zero counts is already q = 0 (a board
+    /// whose counters were homed before). Added in v5.
+    pub home_at_power_on: bool,
 }
 
 /// Where the pick stands.
@@ -141,6 +147,13 @@ pub enum FaultCause {
     /// enters the arm's workspace (reach, joint ranges, clear of the base
     /// axis): the part can never be grasped in this layout.
     PartOutOfReach,
+    /// Homing: a joint's potentiometer read no number, moved with the joint
+    /// at rest, or disagreed with the encoder by more than its tolerance
+    /// (at the index, or once homed). Added in v5.
+    HomingPotentiometer,
+    /// Homing: a joint travelled its search span without an index pulse (a
+    /// dead index channel or a stalled joint). Added in v5.
+    HomingIndexNotSeen,
 }
 
 /// A snapshot of the controller's estimates, sent every `telemetry_period_ticks`.

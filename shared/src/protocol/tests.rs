@@ -118,15 +118,19 @@ fn arb_message() -> impl Strategy<Value = Message> {
             any::<u32>(),
             any::<u64>(),
             any::<[i32; JOINTS]>(),
-            any::<u32>()
+            any::<u32>(),
+            any::<[f32; JOINTS]>(),
+            any::<[Option<i32>; JOINTS]>()
         )
-            .prop_map(|(seq, time_us, j, c)| {
+            .prop_map(|(seq, time_us, j, c, pots, index)| {
                 Message::SensorSample(SensorSample {
                     seq,
                     time_us,
                     joint_counts: j,
                     conveyor_counts: c,
                     part_in_gripper: false,
+                    joint_pots_rad: pots,
+                    joint_index_counts: index,
                 })
             }),
         (
@@ -310,6 +314,8 @@ fn the_largest_messages_fit_the_documented_frame() {
             joint_counts: [i32::MIN; JOINTS],
             conveyor_counts: u32::MAX,
             part_in_gripper: true,
+            joint_pots_rad: [f32::MAX; JOINTS],
+            joint_index_counts: [Some(i32::MIN); JOINTS],
         }),
         Message::ActuatorCommand(ActuatorCommand {
             seq: u32::MAX,
@@ -398,10 +404,11 @@ fn the_documented_frame_limits_hold() {
 
 /// The v2 additions are appended: every v1 message keeps its encoding (the
 /// new variants' indices come after the old ones). v3 changed `CellConfig`
-/// only, v4 appended two fault causes, and the version says so.
+/// only, v4 appended two fault causes, v5 the homing inputs, and the
+/// version says so.
 #[test]
 fn v2_appends_the_trigger_event_and_keeps_v1_encodings() {
-    assert_eq!(PROTOCOL_VERSION, 4);
+    assert_eq!(PROTOCOL_VERSION, 5);
     // postcard writes the variant index first: RuntimeReport was the last of
     // v1 (index 13), TriggerEvent is 14.
     let event = wire_bytes(&Message::TriggerEvent(TriggerEvent {
@@ -416,4 +423,29 @@ fn v2_appends_the_trigger_event_and_keeps_v1_encodings() {
         ::postcard::to_slice(&CostUnit::Nanoseconds, &mut unit).expect("fits"),
         &[3]
     );
+}
+
+/// v5's sensor sample: the homing inputs after the v4 fields, each
+/// potentiometer an f32, each index count an option (one byte when none).
+#[test]
+fn a_v5_sensor_sample_carries_the_potentiometers_and_the_latched_indexes() {
+    let sample = SensorSample {
+        seq: 7,
+        time_us: 1_000,
+        joint_counts: [1, -2, 3, -4, 5, -6],
+        conveyor_counts: 9,
+        part_in_gripper: false,
+        joint_pots_rad: [0.5, -1.25, 3.0, 0.0, -0.001, 2.5],
+        joint_index_counts: [None, Some(-123_456), None, None, Some(i32::MAX), None],
+    };
+    let bytes = wire_bytes(&Message::SensorSample(sample));
+    let back: Message = ::postcard::from_bytes(&bytes).expect("decodes");
+    assert_eq!(back, Message::SensorSample(sample));
+    let idle = SensorSample {
+        joint_index_counts: SensorSample::NO_INDEX,
+        ..sample
+    };
+    // Six f32 and six option tags on top of the v4 sample.
+    let v4_len = wire_bytes(&Message::SensorSample(idle)).len() - 6 * 4 - 6;
+    assert_eq!(v4_len, 1 + 1 + 2 + 6 + 1 + 1);
 }

@@ -36,7 +36,7 @@ use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::signal::Signal;
 use shared::protocol::{ActuatorCommand, GripperCommand, SensorSample};
 
-use crate::board::{validate_torques, BoardError, PlantIo, PlantReading, JOINTS};
+use crate::board::{validate_torques, BoardError, HomingInputs, PlantIo, PlantReading, JOINTS};
 
 /// The newest plant state from the host (written by the link task).
 static PLANT_STATE: Mutex<CriticalSectionRawMutex, Cell<Option<SensorSample>>> =
@@ -101,6 +101,16 @@ impl PlantIo for FreeRunPlant {
             part_in_gripper: state.part_in_gripper,
             emergency_stop: false,
             drive_fault: false,
+        })
+    }
+
+    /// The homing inputs of the state `read_sample` returned (the host's
+    /// plant holds each index latch until the next pulse).
+    fn read_homing_inputs(&mut self) -> Result<HomingInputs, BoardError> {
+        let state = Self::newest()?;
+        Ok(HomingInputs {
+            joint_pots_rad: state.joint_pots_rad,
+            joint_index_counts: state.joint_index_counts,
         })
     }
 

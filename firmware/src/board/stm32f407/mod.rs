@@ -53,6 +53,7 @@ mod clock;
 mod conveyor;
 mod cycles;
 mod encoders;
+mod homing_inputs;
 mod latch;
 mod plant;
 mod quadrature;
@@ -202,6 +203,8 @@ bind_interrupts!(struct Irqs {
     USART2 => BufferedInterruptHandler<USART2>;
     EXTI2 => conveyor::EdgeHandler;
     EXTI3 => conveyor::EdgeHandler;
+    EXTI4 => homing_inputs::IndexHandler;
+    EXTI15_10 => homing_inputs::IndexHandler;
 });
 
 pub type Serial = BufferedUart<'static>;
@@ -483,6 +486,21 @@ pub fn init() -> Result<Board<Serial, Plant, Cycles, Watchdog>, InitError> {
         emergency_stop_ok: Input::new(p.PD8, Pull::Down),
         drive_fault_n: Input::new(p.PD9, Pull::Up),
         brake_release: Output::new(p.PD10, Level::Low, Speed::Low),
+        homing: homing_inputs::HomingSensors::new(homing_inputs::HomingPeripherals {
+            adc: p.ADC1,
+            pot1: p.PC1,
+            pot2: p.PC2,
+            pot3: p.PC4,
+            pot4: p.PC5,
+            pot5: p.PB0,
+            pot6: p.PB1,
+            index1: (p.PE4, p.EXTI4),
+            index2: (p.PB11, p.EXTI11),
+            index3: (p.PB12, p.EXTI12),
+            index4: (p.PB13, p.EXTI13),
+            index5: (p.PB14, p.EXTI14),
+            index6: (p.PB15, p.EXTI15),
+        }),
     });
 
     #[cfg(feature = "lock-step")]

@@ -37,9 +37,11 @@ use embassy_stm32::gpio::{Input, Level, Output};
 
 use super::conveyor::ConveyorEncoder;
 use super::encoders::QuadratureEncoders;
+use super::homing_inputs::HomingSensors;
 use super::latch::{latch, LatchHardware};
 use super::servo::ServoAmplifiers;
-use crate::board::{validate_torques, BoardError, PlantIo, PlantReading, JOINTS};
+use super::JOINT_SIGNS;
+use crate::board::{validate_torques, BoardError, HomingInputs, PlantIo, PlantReading, JOINTS};
 
 /// Everything the control loop drives or reads, owned in one place.
 pub struct Stm32Plant {
@@ -54,6 +56,11 @@ pub struct Stm32Plant {
     brake_release: Output<'static>,
     /// Conveyor decoder trouble already logged, and samples since.
     conveyor_reported: ConveyorReport,
+    homing: HomingSensors,
+    /// The joint counters as the last `read_sample` latched them: raw and
+    /// unwrapped (an index latch is turned into a count against them).
+    last_raw: [u16; JOINTS],
+    last_counts: [i32; JOINTS],
 }
 
 /// Rate-limits the conveyor decoder's warnings: the log goes over RTT, which
@@ -86,6 +93,8 @@ pub struct PlantDevices {
     pub drive_fault_n: Input<'static>,
     /// PD10, created low (brakes engaged): high releases the holding brakes.
     pub brake_release: Output<'static>,
+    /// The potentiometers and index inputs (`homing_inputs`).
+    pub homing: HomingSensors,
 }
 
 impl Stm32Plant {
@@ -105,6 +114,9 @@ impl Stm32Plant {
                 faults: 0,
                 samples_since: CONVEYOR_REPORT_EVERY,
             },
+            homing: devices.homing,
+            last_raw: [0; JOINTS],
+            last_counts: [0; JOINTS],
         }
     }
 
@@ -183,6 +195,8 @@ impl PlantIo for Stm32Plant {
             )
         });
         let joint_counts = self.joints.unwrap_counts(latched.joints)?;
+        self.last_raw = latched.joints;
+        self.last_counts = joint_counts;
         self.report_conveyor_trouble();
         Ok(PlantReading {
             joint_counts,
@@ -190,6 +204,21 @@ impl PlantIo for Stm32Plant {
             part_in_gripper: self.part_present.is_high(),
             emergency_stop: self.emergency_stop_ok.is_low(),
             drive_fault: self.drive_fault_n.is_low(),
+        })
+    }
+
+    fn read_homing_inputs(&mut self) -> Result<HomingInputs, BoardError> {
+        let signs: [i32; JOINTS] = core::array::from_fn(|j| {
+            JOINT_SIGNS
+                .encoder_count(j, 1)
+                .and_then(|s| i32::try_from(s).ok())
+                .unwrap_or(1)
+        });
+        Ok(HomingInputs {
+            joint_pots_rad: self.homing.potentiometers(),
+            joint_index_counts: self
+                .homing
+                .index_counts(&self.last_raw, &self.last_counts, &signs),
         })
     }
 

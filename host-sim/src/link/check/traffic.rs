@@ -35,6 +35,8 @@ pub(super) fn data_frame(
                 joint_counts,
                 conveyor_counts: rng.next() as u32,
                 part_in_gripper: false,
+                joint_pots_rad: [0.0; 6],
+                joint_index_counts: SensorSample::NO_INDEX,
             })
         }
         _ => {

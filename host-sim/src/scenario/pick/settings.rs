@@ -31,6 +31,9 @@ pub struct WorldFaults {
     /// wraps early in the run (otherwise its start is drawn at random).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub counter_counts_before_wrap: Option<u32>,
+    /// One joint's homing channel is broken from power-on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub homing: Option<crate::world::homing_sensors::HomingFault>,
 }
 
 impl WorldFaults {
@@ -241,6 +244,11 @@ pub struct RobotSettings {
     /// the defaults of [`DriveSettings`]).
     #[serde(default)]
     pub drive: DriveSettings,
+    /// The counters' power-on offsets, the potentiometers and the index
+    /// pulses (optional: the defaults of
+    /// [`HomingSensorSettings`](crate::world::homing_sensors::HomingSensorSettings)).
+    #[serde(default)]
+    pub homing: crate::world::homing_sensors::HomingSensorSettings,
 }
 
 /// How far the true drives may be from the controller's table (see

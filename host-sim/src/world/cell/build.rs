@@ -25,6 +25,7 @@ use crate::world::dimensions::DISC_RADIUS_M;
 use crate::world::drive::PlantDrives;
 use crate::world::generator::random_workcell;
 use crate::world::gripper::GraspTolerance;
+use crate::world::homing_sensors::HomingSensors;
 use crate::world::plant::{JointEncoders, RobotPlant};
 use crate::world::serve::{check_serve, grasp_reachable};
 use crate::world::vision::CameraSim;
@@ -32,6 +33,9 @@ use crate::world::workcell::Workcell;
 
 /// XORed into the world's seed to seed the drives' draws.
 const DRIVE_STREAM: u64 = 0xD21E_D21E_D21E_D21E;
+/// XORed into the world's seed to seed the homing sensors' draws (their own
+/// stream: the rest of the world is drawn as before).
+const HOMING_STREAM: u64 = 0x4803_1E55_4803_1E55;
 
 /// The recorder's scenario with this experiment's part and camera tilt: the
 /// workcell generator's ranges (Section 5's setup) do the rest.
@@ -194,19 +198,25 @@ impl World {
         // The drives from a stream of their own: their draws shift nothing else of the world.
         let mut drive_rng = ChaCha8Rng::seed_from_u64(seed ^ DRIVE_STREAM);
         let drives = PlantDrives::draw(&experiment.robot.drive, &mut drive_rng);
-        let plant = RobotPlant::new(
-            link_mass_scale,
-            experiment.robot.payload_kg,
-            Vector3::from(TOOL_PAYLOAD_COM_FLANGE_M),
-            shared::planning::ready_posture(),
-            drives,
-        )?;
         let gear = shared::robot::Puma560::<f64>::new();
         let mut counts_per_rad = [0.0; 6];
         for (c, drive) in counts_per_rad.iter_mut().zip(gear.drive_params().iter()) {
             *c = experiment.robot.joint_counts_per_motor_rev * drive.gear_ratio.abs() / TAU;
         }
         let encoders = JointEncoders { counts_per_rad };
+        let mut homing_sensors = HomingSensors::draw(
+            &experiment.robot.homing,
+            &counts_per_rad,
+            experiment.faults.homing,
+            seed ^ HOMING_STREAM,
+        )?;
+        let plant = RobotPlant::new(
+            link_mass_scale,
+            experiment.robot.payload_kg,
+            Vector3::from(TOOL_PAYLOAD_COM_FLANGE_M),
+            homing_sensors.power_on_posture(&shared::planning::ready_posture()),
+            drives,
+        )?;
 
         let settings = experiment.conveyor;
         let mut conveyor = Conveyor::new(
@@ -309,6 +319,7 @@ impl World {
             workcell,
             plant,
             encoders,
+            homing_sensors,
             conveyor,
             camera,
             ticks: 0,

@@ -26,6 +26,7 @@ use shared::robot::JointVector;
 use super::conveyor::Conveyor;
 use super::dimensions::DISC_RADIUS_M;
 use super::gripper::GraspTolerance;
+use super::homing_sensors::HomingSensors;
 use super::plant::{JointEncoders, RobotPlant};
 use super::vision::CameraSim;
 use super::workcell::Workcell;
@@ -111,6 +112,8 @@ pub struct World {
     workcell: Workcell,
     plant: RobotPlant,
     encoders: JointEncoders,
+    /// The counters' power-on offsets, the potentiometers, the index pulses.
+    homing_sensors: HomingSensors,
     conveyor: Conveyor,
     camera: CameraSim,
     tolerance: GraspTolerance,
@@ -182,6 +185,7 @@ impl World {
             drop_off_base_m: array(&self.drop_off_base).map(|x| x as f32),
             camera_period_ms: self.experiment.camera.frame_period_ms,
             telemetry_period_ticks: (rate * TELEMETRY_PERIOD_S).round().clamp(1.0, 65_535.0) as u16,
+            home_at_power_on: self.experiment.robot.homing.counters_start_anywhere,
         }
     }
 
@@ -209,16 +213,24 @@ impl World {
         &self.camera
     }
 
+    /// The homing sensors (their drawn counter offsets: truth, for scoring).
+    pub fn homing_sensors(&self) -> &HomingSensors {
+        &self.homing_sensors
+    }
+
     /// Encoder readings now: joint counts from the plant's true angles, the
     /// conveyor's raw (wrapping) counter.
     pub fn sensor_sample(&mut self) -> SensorSample {
         let t = self.time_s();
+        let q = self.plant.state().q;
         let sample = SensorSample {
             seq: self.sensor_seq,
             time_us: (t * 1e6).round() as u64,
-            joint_counts: self.encoders.read(&self.plant.state().q),
+            joint_counts: self.homing_sensors.counters(&q),
             conveyor_counts: self.conveyor.encoder_raw(t),
             part_in_gripper: matches!(self.part, PartState::Held { .. }),
+            joint_pots_rad: self.homing_sensors.potentiometers(&q),
+            joint_index_counts: self.homing_sensors.latched(),
         };
         self.sensor_seq = self.sensor_seq.wrapping_add(1);
         sample

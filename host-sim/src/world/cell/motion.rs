@@ -34,6 +34,7 @@ impl World {
             self.plant
                 .step(&tau, dt)
                 .with_context(|| format!("plant (braked) at t = {:.3} s", self.time_s()))?;
+            self.homing_sensors.track(&self.plant.state().q);
         }
         self.ticks += 1;
         Ok(())
@@ -103,6 +104,7 @@ impl World {
             self.plant
                 .step(&commanded, dt)
                 .with_context(|| format!("plant at t = {:.3} s", self.time_s()))?;
+            self.homing_sensors.track(&self.plant.state().q);
         }
         self.ticks += 1;
         Ok(())

@@ -135,17 +135,21 @@ fn the_cell_config_carries_nothing_calibrated() {
     assert_eq!(config.conveyor_counter_bits, 16);
     assert_eq!(config.part_feature_count, 3);
     assert_eq!(config.camera_period_ms, 200);
-    // The encoders: the controller's (count + 0.5) / counts_per_rad recovers q.
+    // The encoders: less the counters' power-on offsets (what homing
+    // finds), the controller's (count + 0.5) / counts_per_rad recovers q.
     let mut world = world;
     let sample = world.sensor_sample();
     let q = world.truth().q_rad;
-    for ((count, per_rad), angle) in sample
+    let offsets = world.homing_sensors().counter_offsets();
+    assert!(config.home_at_power_on);
+    for (((count, offset), per_rad), angle) in sample
         .joint_counts
         .iter()
+        .zip(offsets)
         .zip(config.joint_counts_per_rad.iter())
         .zip(q.iter())
     {
-        let back = (f64::from(*count) + 0.5) / f64::from(*per_rad);
+        let back = (f64::from(count.wrapping_sub(offset)) + 0.5) / f64::from(*per_rad);
         assert!((back - angle).abs() <= 0.5 / f64::from(*per_rad) + 1e-6);
     }
     // The drop-off is the user's, as the scenario sets it.

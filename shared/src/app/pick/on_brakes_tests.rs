@@ -23,6 +23,8 @@ fn braked_run(braked_from: Option<u32>) -> Option<FaultCause> {
             joint_counts: [0; 6],
             conveyor_counts: 0,
             part_in_gripper: false,
+            joint_pots_rad: [0.0; 6],
+            joint_index_counts: SensorSample::NO_INDEX,
         };
         let mut out = Vec::new();
         let _ = controller.on_sensor_sample(&sample, &mut out);

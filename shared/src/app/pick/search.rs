@@ -107,7 +107,11 @@ impl SearchPlan {
             return Err(SearchError::InvalidInput);
         }
         // The flange in the arm's plane: along it and across it (the offset).
-        let (s, c) = (libm::sinf(q1), libm::cosf(q1));
+        // The control loop's sine and cosine: libm's sinf and cosf go
+        // through soft f64 for any joint angle but a tiny one (1,900
+        // instructions more in the first period from a posture off the
+        // ready one, on the M4F).
+        let (s, c) = crate::control::trig::sin_cos(q1);
         let along = c * flange_start.x + s * flange_start.y;
         let lateral = -s * flange_start.x + c * flange_start.y;
         let along_sign = if along < 0.0 { -1.0 } else { 1.0 };

@@ -25,6 +25,8 @@ fn the_trigger_asked_for_before_a_period_is_the_one_the_period_fires() {
             joint_counts: [0; 6],
             conveyor_counts: seq.wrapping_mul(3),
             part_in_gripper: false,
+            joint_pots_rad: [0.0; 6],
+            joint_index_counts: SensorSample::NO_INDEX,
         };
         let mut out = Vec::new();
         let command = controller.on_sensor_sample(&sample, &mut out);
