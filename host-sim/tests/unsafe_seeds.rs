@@ -179,3 +179,19 @@ fn a_disc_that_speeds_up_under_the_descent_is_let_go_within_joint_1s_range() {
     assert!(t.success || t.stop_cause.is_some(), "{}", t.result);
     assert_keeps_the_wide_layout_margin(&t);
 }
+
+/// The control loop stalls for 0.74 s with the wrist turning (seed 1,
+/// trial 894): the simulated drives' own watchdog brake, viscous and
+/// unbounded, asked joint 6 for 1.06 times its rating and applied 1.003
+/// (the controller commands at most `DRIVE_TORQUE_HEADROOM` of it, 0.92).
+/// The drive's brake now keeps the same headroom.
+#[test]
+fn a_stall_brakes_the_wrist_within_its_rating() {
+    let t = replay(1, 894, FaultKind::ControlStall);
+    assert_eq!(
+        t.stop_cause.as_deref(),
+        Some("ControlStall"),
+        "{}",
+        t.result
+    );
+}

@@ -28,8 +28,19 @@ impl World {
             let tau = if held_s <= DRIVE_WATCHDOG_S {
                 self.last_tau
             } else {
+                // The drive's own brake keeps within the share of the rating
+                // its maker allows for its torque constant and ripple (the
+                // controller's `DRIVE_TORQUE_HEADROOM`): undamped, a wrist
+                // joint at speed asked for 1.06 of its rating.
                 let state = self.plant.state();
-                self.plant.model().gravity_torque(&state.q) - state.qd * BRAKE_DAMPING_NM_S
+                let wanted =
+                    self.plant.model().gravity_torque(&state.q) - state.qd * BRAKE_DAMPING_NM_S;
+                let headroom = f64::from(shared::control::puma::DRIVE_TORQUE_HEADROOM);
+                let rated = self.plant.model().joint_limits().torque_max;
+                JointVector::from_fn(|j, _| {
+                    let max = rated[j] * headroom;
+                    wanted[j].clamp(-max, max)
+                })
             };
             self.plant
                 .step(&tau, dt)
