@@ -483,7 +483,8 @@ mod tests {
         crate::test_cell::test_cell_config(4096, 4)
     }
 
-    fn configured() -> ControllerApp {
+    /// A controller that has answered the host's hello.
+    fn greeted() -> ControllerApp {
         let mut app = ControllerApp::new("test", 1000);
         let mut out = Vec::new();
         app.on_message(
@@ -493,6 +494,12 @@ mod tests {
             },
             &mut out,
         );
+        app
+    }
+
+    fn configured() -> ControllerApp {
+        let mut app = greeted();
+        let mut out = Vec::new();
         app.on_message(&Message::Configure(config()), &mut out);
         assert!(app.pick().is_some(), "{out:?}");
         app
@@ -614,15 +621,8 @@ mod tests {
 
     #[test]
     fn a_homing_fault_holds_the_pick_back_and_reports_its_cause() {
-        let mut app = ControllerApp::new("test", 1000);
+        let mut app = greeted();
         let mut out = Vec::new();
-        app.on_message(
-            &Message::Hello {
-                protocol_version: PROTOCOL_VERSION,
-                peer_name: heapless::String::new(),
-            },
-            &mut out,
-        );
         let mut homing = config();
         homing.home_at_power_on = true;
         app.on_message(&Message::Configure(homing), &mut out);
