@@ -34,15 +34,15 @@ pub struct BoardTiming {
 /// The emulated firmware's worst jobs, experiment-2-7cm seed 1 (the
 /// emulated pick's run; see the module's doc for the command). Counted from
 /// the job's start to its end, so the control periods that preempt it
-/// (about 1 % here) are in them too. Re-measured with homing at power-on:
-/// the pick starts 2.8 s later against the turning disc, and its worst plan
-/// went from 79.1 to 52.4 million instructions (the estimates moved under
-/// 6 %).
-pub const MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS: u64 = 519_710_360;
+/// (about 1 % here) are in them too. Re-measured with homing at power-on
+/// (the pick starts 2.8 s later against the turning disc) and the plan
+/// proving its grasp window for the longer settle too: 59.1 million
+/// instructions a plan.
+pub const MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS: u64 = 557_910_200;
 /// See [`MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS`].
-pub const MEASURED_ESTIMATE_FINAL_INSTRUCTIONS: u64 = 947_565_480;
+pub const MEASURED_ESTIMATE_FINAL_INSTRUCTIONS: u64 = 1_009_011_320;
 /// See [`MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS`].
-pub const MEASURED_PLAN_INSTRUCTIONS: u64 = 52_445_480;
+pub const MEASURED_PLAN_INSTRUCTIONS: u64 = 59_131_160;
 
 /// Cycles an instruction, the pick period's on the cycle model
 /// (docs/performance.md, "Cycles on the STM32F407"): 2.03. The jobs' soft
