@@ -426,17 +426,14 @@ impl PickController {
                         z_m: target.z_m.max(floor),
                         ..target
                     };
+                    let position = Vector3::new(
+                        target.radius_m * libm::cosf(target.azimuth_rad),
+                        target.radius_m * libm::sinf(target.azimuth_rad),
+                        target.z_m,
+                    );
                     let planned = self.arc_to(self.route.near_start_with_wrist(target));
-                    // (Only a raised pose is checked again: the plan checked the rest.)
-                    let reachable = || {
-                        let position = Vector3::new(
-                            target.radius_m * libm::cosf(target.azimuth_rad),
-                            target.radius_m * libm::sinf(target.azimuth_rad),
-                            target.z_m,
-                        );
-                        crate::planning::within_reach(&self.model, &position)
-                    };
-                    if raised && (planned.is_err() || !reachable()) {
+                    let reachable = crate::planning::within_reach(&self.model, &position);
+                    if raised && (planned.is_err() || !reachable) {
                         // Out of reach raised: the next pose.
                         self.enter(Step::CalibrateMove(i.saturating_add(1)));
                         return;
