@@ -51,6 +51,7 @@ fn refined_estimate_reaches_the_likelihood_optimum() {
             feature_count: 3,
             reference_radius_m: 0.4,
             fix_base_height: false,
+            folded: None,
         };
         let mut features = [nalgebra::Vector3::zeros(); MAX_PART_FEATURES];
         for (s, f) in features.iter_mut().zip(&workcell.features_rotating) {

@@ -10,7 +10,7 @@
 //! stored exactly as before (f64 angle, f32 pixels), so every estimate is unchanged.
 
 use super::records::{FrameRecord, PixelF32};
-use super::store::{Admission, ThinningSchedule};
+use super::store::{Admission, Placement, ThinningSchedule};
 use crate::observation::MAX_PART_FEATURES;
 use heapless::Vec;
 
@@ -36,6 +36,8 @@ pub struct FrameStore<const N: usize, const P: usize = FULL_FRAME_PIXELS> {
     /// added as the frames need them.
     pixels: Vec<[PixelF32; P], N>,
     pixels_per_frame: usize,
+    /// Each frame's offer index (which frames a halving keeps).
+    indices: Vec<u32, N>,
     schedule: ThinningSchedule,
 }
 
@@ -47,6 +49,7 @@ impl<const N: usize, const P: usize> FrameStore<N, P> {
             presence: Vec::new(),
             pixels: Vec::new(),
             pixels_per_frame: part_feature_count.saturating_add(2),
+            indices: Vec::new(),
             schedule: ThinningSchedule::new(),
         }
     }
@@ -70,6 +73,7 @@ impl<const N: usize, const P: usize> FrameStore<N, P> {
     /// beyond `part_feature_count` are not stored; missing ones are stored as zeros.
     pub fn offer(&mut self, record: &FrameRecord<'_>) {
         let capacity = self.capacity();
+        let index = self.schedule.offered();
         let keep = match self.schedule.admit(self.len(), capacity) {
             Admission::Skip => false,
             Admission::Keep => true,
@@ -79,7 +83,27 @@ impl<const N: usize, const P: usize> FrameStore<N, P> {
             }
         };
         if keep && self.len() < capacity {
-            self.push(record);
+            self.write(self.len(), record, index);
+        }
+    }
+
+    /// [`FrameStore::offer`] for a store that folds what it drops: `fold` gets every
+    /// frame that leaves, at most one per offer ([`ThinningSchedule::place`]).
+    pub fn offer_folding(
+        &mut self,
+        record: &FrameRecord<'_>,
+        mut fold: impl FnMut(&FrameRecord<'_>),
+    ) {
+        let (index, placement) = self.schedule.place(&self.indices, self.capacity());
+        match placement {
+            Placement::FoldOffered => fold(record),
+            Placement::Append => self.write(self.len(), record, index),
+            Placement::Replace(slot) => {
+                if let Some(leaving) = self.view().get(slot) {
+                    fold(&leaving);
+                }
+                self.write(slot, record, index);
+            }
         }
     }
 
@@ -99,9 +123,10 @@ impl<const N: usize, const P: usize> FrameStore<N, P> {
         }
     }
 
-    /// Appends a frame (the caller checked that there is room).
-    fn push(&mut self, record: &FrameRecord<'_>) {
-        let start = self.len().saturating_mul(self.pixels_per_frame);
+    /// Writes a frame offered at `index` into `slot`: a stored frame's (replacing
+    /// it) or the next free one (`slot == len`, the caller checked there is room).
+    fn write(&mut self, slot: usize, record: &FrameRecord<'_>, index: u32) {
+        let start = slot.saturating_mul(self.pixels_per_frame);
         let end = start.saturating_add(self.pixels_per_frame);
         while self.pixels.len().saturating_mul(P) < end {
             if self.pixels.push([[0.0; 2]; P]).is_err() {
@@ -123,27 +148,57 @@ impl<const N: usize, const P: usize> FrameStore<N, P> {
         let presence = bit(record.centre.is_some(), CENTRE)
             | bit(record.reference.is_some(), REFERENCE)
             | bit(record.part.is_some(), PART);
-        // Both have room: the pixels did, and the three grow together up to `N`.
-        if self.thetas.push(record.theta).is_ok() && self.presence.push(presence).is_err() {
-            self.thetas.pop();
+        if slot < self.len() {
+            let fields = (
+                self.thetas.get_mut(slot),
+                self.presence.get_mut(slot),
+                self.indices.get_mut(slot),
+            );
+            if let (Some(theta), Some(bits), Some(offer)) = fields {
+                *theta = record.theta;
+                *bits = presence;
+                *offer = index;
+            }
+            return;
+        }
+        // All three have room: the pixels did, and they grow together up to `N`.
+        if self.thetas.push(record.theta).is_ok() {
+            if self.presence.push(presence).is_err() {
+                self.thetas.pop();
+            } else if self.indices.push(index).is_err() {
+                self.thetas.pop();
+                self.presence.pop();
+            }
         }
     }
 
-    /// Keeps frames 0, 2, 4 ... at positions 0, 1, 2 ... (the thinning rule's halving).
+    /// Keeps the frames on the (just doubled) stride, in their order (the thinning
+    /// rule's halving).
     fn halve(&mut self) {
-        let kept = self.len().div_ceil(2);
         let width = self.pixels_per_frame;
-        for to in 1..kept {
-            let from = 2 * to;
-            move_item(&mut self.thetas, from, to);
-            move_item(&mut self.presence, from, to);
-            let pixels = self.pixels.as_flattened_mut();
-            for offset in 0..width {
-                move_item(pixels, from * width + offset, to * width + offset);
+        let mut kept = 0;
+        for from in 0..self.len() {
+            let on_stride = self
+                .indices
+                .get(from)
+                .is_some_and(|&index| self.schedule.on_stride(index));
+            if !on_stride {
+                continue;
             }
+            if from != kept {
+                move_item(&mut self.thetas, from, kept);
+                move_item(&mut self.presence, from, kept);
+                move_item(&mut self.indices, from, kept);
+                let pixels = self.pixels.as_flattened_mut();
+                for offset in 0..width {
+                    move_item(pixels, from * width + offset, kept * width + offset);
+                }
+            }
+            kept += 1;
         }
         self.thetas.truncate(kept);
         self.presence.truncate(kept);
+        self.indices.truncate(kept);
         self.pixels
             .truncate(kept.saturating_mul(width).div_ceil(P.max(1)));
     }
@@ -179,7 +234,28 @@ impl<'a> FrameView<'a> {
         self.thetas.is_empty()
     }
 
-    /// The frames, oldest first.
+    /// The frame in `slot`.
+    pub fn get(&self, slot: usize) -> Option<FrameRecord<'a>> {
+        let theta = *self.thetas.get(slot)?;
+        let presence = *self.presence.get(slot)?;
+        let start = slot.saturating_mul(self.pixels_per_frame);
+        let pixels = self
+            .pixels
+            .get(start..start.saturating_add(self.pixels_per_frame))?;
+        let (centre, reference, part) = match pixels {
+            [centre, reference, part @ ..] => (*centre, *reference, part),
+            _ => return None,
+        };
+        let has = |bit: u8| presence & bit != 0;
+        Some(FrameRecord {
+            theta,
+            centre: has(CENTRE).then_some(centre),
+            reference: has(REFERENCE).then_some(reference),
+            part: has(PART).then_some(part),
+        })
+    }
+
+    /// The frames, oldest first until the store folds (then in no particular order).
     pub fn iter(&self) -> FrameIter<'a> {
         FrameIter {
             view: *self,
@@ -202,26 +278,9 @@ impl<'a> Iterator for FrameIter<'a> {
     /// body inlined into each cost the firmware 5 KB of flash.
     #[inline(never)]
     fn next(&mut self) -> Option<FrameRecord<'a>> {
-        let index = self.next;
-        let view = &self.view;
-        let theta = *view.thetas.get(index)?;
-        let presence = *view.presence.get(index)?;
-        let start = index.saturating_mul(view.pixels_per_frame);
-        let pixels = view
-            .pixels
-            .get(start..start.saturating_add(view.pixels_per_frame))?;
-        let (centre, reference, part) = match pixels {
-            [centre, reference, part @ ..] => (*centre, *reference, part),
-            _ => return None,
-        };
-        self.next = index.saturating_add(1);
-        let has = |bit: u8| presence & bit != 0;
-        Some(FrameRecord {
-            theta,
-            centre: has(CENTRE).then_some(centre),
-            reference: has(REFERENCE).then_some(reference),
-            part: has(PART).then_some(part),
-        })
+        let frame = self.view.get(self.next)?;
+        self.next = self.next.saturating_add(1);
+        Some(frame)
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {
@@ -277,6 +336,42 @@ mod tests {
             if let Some(part) = frame.part {
                 assert_eq!(part, &kept_features[index][..]);
             }
+        }
+    }
+
+    #[test]
+    fn folding_keeps_every_frame_somewhere_one_fold_an_offer() {
+        let mut store: FrameStore<16, 5> = FrameStore::new(3);
+        let mut folded = std::vec::Vec::new();
+        let features = [[1.0, 3.0], [1.0, 4.0], [1.0, 5.0]];
+        let index_of = |frame: &FrameRecord<'_>| (frame.theta / 0.01).round() as usize;
+        for index in 0..100 {
+            let before = folded.len();
+            store.offer_folding(&record(index, &features), |frame| {
+                assert_eq!(
+                    frame.part.map(<[_]>::len),
+                    (index_of(frame) % 2 == 0).then_some(3)
+                );
+                folded.push(index_of(frame))
+            });
+            assert!(folded.len() - before <= 1);
+            let mut all: std::vec::Vec<usize> = store
+                .view()
+                .iter()
+                .map(|frame| index_of(&frame))
+                .chain(folded.iter().copied())
+                .collect();
+            all.sort_unstable();
+            assert_eq!(all, (0..=index).collect::<std::vec::Vec<_>>());
+        }
+        // Each stored frame is intact where it landed.
+        for frame in store.view().iter() {
+            let index = index_of(&frame);
+            assert_eq!(frame.reference.is_some(), index % 5 != 0);
+            assert_eq!(
+                frame.centre,
+                (index % 3 != 0).then_some([index as f32, 1.0])
+            );
         }
     }
 

@@ -30,6 +30,7 @@
 //! - [`uncertainty`]: standard deviations of the refined estimate.
 //! - [`store`], [`records`]: bounded, thinned storage of observations (f32 pixels).
 //! - [`frame_store`]: the frames' store, packed at the part's feature count.
+//! - [`folded`]: what the stores have no room for, kept as normal equations.
 //! - [`calibrator`]: [`SelfCalibrator`], the incremental estimator tying it together.
 
 pub mod calibrator;
@@ -38,6 +39,7 @@ pub mod config;
 pub mod conic;
 pub mod effector;
 pub mod error;
+pub mod folded;
 pub mod frame_store;
 pub mod homography;
 pub mod model;

@@ -6,7 +6,7 @@ use nalgebra::{Matrix2x3, Matrix3, Rotation3, SMatrix, Vector2, Vector3};
 
 use super::frame_store::FrameView;
 use super::pinhole::Pinhole;
-use super::records::{to_vector, EffectorRecord};
+use super::records::{to_vector, EffectorRecord, FrameRecord};
 use crate::observation::MAX_PART_FEATURES;
 
 /// Camera pose, part feature points and `base_from_disc`.
@@ -92,39 +92,58 @@ pub fn for_each_observation(
     mut visit: impl FnMut(&Observation),
 ) {
     for frame in frames.iter() {
-        if let Some(centre) = frame.centre {
-            visit(&Observation {
-                pixel: to_vector(centre),
-                target: Target::KnownDisc(Vector3::zeros()),
-            });
-        }
-        if let Some(reference) = frame.reference {
-            let (s, c) = libm::sincos(frame.theta);
-            let p_disc = Vector3::new(reference_radius_m * c, reference_radius_m * s, 0.0);
-            visit(&Observation {
-                pixel: to_vector(reference),
-                target: Target::KnownDisc(p_disc),
-            });
-        }
-        if let Some(part) = frame.part {
-            for (index, pixel) in part.iter().take(feature_count).enumerate() {
-                visit(&Observation {
-                    pixel: to_vector(*pixel),
-                    target: Target::Feature {
-                        index,
-                        theta: frame.theta,
-                    },
-                });
-            }
-        }
+        for_each_frame_observation(&frame, feature_count, reference_radius_m, &mut visit);
     }
     for sighting in effectors {
-        for which in 0..2 {
+        for_each_sighting_observation(sighting, &mut visit);
+    }
+}
+
+/// Calls `visit` for the image points of one frame (disc centre, reference point, the
+/// part's features).
+pub fn for_each_frame_observation(
+    frame: &FrameRecord<'_>,
+    feature_count: usize,
+    reference_radius_m: f64,
+    mut visit: impl FnMut(&Observation),
+) {
+    if let Some(centre) = frame.centre {
+        visit(&Observation {
+            pixel: to_vector(centre),
+            target: Target::KnownDisc(Vector3::zeros()),
+        });
+    }
+    if let Some(reference) = frame.reference {
+        let (s, c) = libm::sincos(frame.theta);
+        let p_disc = Vector3::new(reference_radius_m * c, reference_radius_m * s, 0.0);
+        visit(&Observation {
+            pixel: to_vector(reference),
+            target: Target::KnownDisc(p_disc),
+        });
+    }
+    if let Some(part) = frame.part {
+        for (index, pixel) in part.iter().take(feature_count).enumerate() {
             visit(&Observation {
-                pixel: sighting.pixel(which),
-                target: Target::Effector(sighting.base_point(which)),
+                pixel: to_vector(*pixel),
+                target: Target::Feature {
+                    index,
+                    theta: frame.theta,
+                },
             });
         }
+    }
+}
+
+/// Calls `visit` for the two end-effector points of one sighting.
+pub fn for_each_sighting_observation(
+    sighting: &EffectorRecord,
+    mut visit: impl FnMut(&Observation),
+) {
+    for which in 0..2 {
+        visit(&Observation {
+            pixel: sighting.pixel(which),
+            target: Target::Effector(sighting.base_point(which)),
+        });
     }
 }
 
@@ -194,6 +213,37 @@ impl WorkcellModel {
             pixel - observation.pixel,
             ResidualJacobian { camera, other },
         ))
+    }
+
+    /// The increment that [`WorkcellModel::retract`] applies to `from` to reach this
+    /// model (to first order in the rotation): where a folded linearisation at `from`
+    /// ([`super::folded`]) reads the current model.
+    pub fn difference_from(&self, from: &WorkcellModel) -> SMatrix<f64, PARAMETERS, 1> {
+        let mut increment = SMatrix::<f64, PARAMETERS, 1>::zeros();
+        let relative = from.disc_from_camera.inverse() * self.disc_from_camera;
+        increment
+            .fixed_view_mut::<3, 1>(0, 0)
+            .copy_from(&relative.scaled_axis());
+        increment
+            .fixed_view_mut::<3, 1>(3, 0)
+            .copy_from(&(self.camera_centre_disc - from.camera_centre_disc));
+        for (slot, (to, at)) in self
+            .features_rotating
+            .iter()
+            .zip(&from.features_rotating)
+            .enumerate()
+        {
+            increment
+                .fixed_view_mut::<3, 1>(FEATURE_OFFSET + 3 * slot, 0)
+                .copy_from(&(to - at));
+        }
+        if let Some(yaw) = increment.get_mut(BASE_OFFSET) {
+            *yaw = self.base_yaw - from.base_yaw;
+        }
+        increment
+            .fixed_view_mut::<3, 1>(BASE_OFFSET + 1, 0)
+            .copy_from(&(self.base_translation - from.base_translation));
+        increment
     }
 
     /// Applies an increment laid out as [rotation (3), camera centre (3), features (3 each,

@@ -163,6 +163,65 @@ impl NormalBlocks {
         }
     }
 
+    /// `N x` for an increment `x` in the layout of [`super::model::WorkcellModel::retract`]
+    /// (a folded linearisation's gradient at a point `x` away from where it was taken).
+    pub fn apply(&self, x: &Increment) -> Increment {
+        let x_arrow = arrow_part(x);
+        let mut out_arrow = self.arrow * x_arrow;
+        let mut out = Increment::zeros();
+        let camera = x_arrow.fixed_view::<CAMERA_PARAMETERS, 1>(0, 0);
+        for (slot, (v, w)) in self.features.iter().zip(&self.cross).enumerate() {
+            let x_feature = x.fixed_view::<3, 1>(FEATURE_OFFSET + 3 * slot, 0);
+            let mut out_camera = out_arrow.fixed_view_mut::<CAMERA_PARAMETERS, 1>(0, 0);
+            out_camera += w * x_feature;
+            let feature = w.transpose() * camera + v * x_feature;
+            out.fixed_view_mut::<3, 1>(FEATURE_OFFSET + 3 * slot, 0)
+                .copy_from(&feature);
+        }
+        set_arrow_part(&mut out, &out_arrow);
+        out
+    }
+
+    /// The gradient `J^T W r` in the layout of [`NormalBlocks::apply`].
+    pub fn gradient(&self) -> Increment {
+        let mut out = Increment::zeros();
+        set_arrow_part(&mut out, &self.arrow_gradient);
+        for (slot, g) in self.feature_gradients.iter().enumerate() {
+            out.fixed_view_mut::<3, 1>(FEATURE_OFFSET + 3 * slot, 0)
+                .copy_from(g);
+        }
+        out
+    }
+
+    /// Adds `other`'s matrix and its gradient, plus `gradient_shift` (layout of
+    /// [`NormalBlocks::apply`]), to these blocks: a folded linearisation joins the
+    /// stored observations' normal equations.
+    pub fn add(&mut self, other: &NormalBlocks, gradient_shift: &Increment) {
+        self.arrow += other.arrow;
+        self.arrow_gradient += other.arrow_gradient + arrow_part(gradient_shift);
+        let features = self
+            .features
+            .iter_mut()
+            .zip(self.cross.iter_mut())
+            .zip(self.feature_gradients.iter_mut())
+            .zip(other.features.iter().zip(&other.cross))
+            .zip(other.feature_gradients.iter())
+            .enumerate();
+        for (slot, ((((v, w), g), (other_v, other_w)), other_g)) in features {
+            *v += other_v;
+            *w += other_w;
+            *g += other_g + gradient_shift.fixed_view::<3, 1>(FEATURE_OFFSET + 3 * slot, 0);
+        }
+    }
+
+    /// Adds `shift` (layout of [`NormalBlocks::apply`]) to the gradient.
+    pub fn shift_gradient(&mut self, shift: &Increment) {
+        self.arrow_gradient += arrow_part(shift);
+        for (slot, g) in self.feature_gradients.iter_mut().enumerate() {
+            *g += shift.fixed_view::<3, 1>(FEATURE_OFFSET + 3 * slot, 0);
+        }
+    }
+
     /// `A` with every held parameter's row and column replaced by the identity's.
     fn arrow_holding(&self, freedom: &Freedom) -> ArrowMatrix {
         let mut a = self.arrow;
@@ -289,6 +348,24 @@ impl NormalBlocks {
             part_position,
         })
     }
+}
+
+/// The camera and base entries of an increment, in the arrowhead's order.
+fn arrow_part(x: &Increment) -> ArrowVector {
+    let mut out = ArrowVector::zeros();
+    out.fixed_view_mut::<CAMERA_PARAMETERS, 1>(0, 0)
+        .copy_from(&x.fixed_view::<CAMERA_PARAMETERS, 1>(0, 0));
+    out.fixed_view_mut::<BASE_PARAMETERS, 1>(CAMERA_PARAMETERS, 0)
+        .copy_from(&x.fixed_view::<BASE_PARAMETERS, 1>(BASE_OFFSET, 0));
+    out
+}
+
+/// Writes the arrowhead's camera and base entries into an increment.
+fn set_arrow_part(x: &mut Increment, arrow: &ArrowVector) {
+    x.fixed_view_mut::<CAMERA_PARAMETERS, 1>(0, 0)
+        .copy_from(&arrow.fixed_view::<CAMERA_PARAMETERS, 1>(0, 0));
+    x.fixed_view_mut::<BASE_PARAMETERS, 1>(BASE_OFFSET, 0)
+        .copy_from(&arrow.fixed_view::<BASE_PARAMETERS, 1>(CAMERA_PARAMETERS, 0));
 }
 
 #[cfg(test)]
@@ -475,6 +552,25 @@ mod tests {
             let (from_blocks, gradient_from_blocks) = dense(&blocks);
             assert_eq!(from_blocks, normal);
             assert_eq!(gradient_from_blocks, gradient);
+        }
+    }
+
+    #[test]
+    fn the_products_and_sums_are_the_dense_ones() {
+        for (seed, freedom) in FREEDOMS.iter().enumerate() {
+            let (blocks, normal, gradient) = random_problem(seed as u64 + 50, freedom);
+            let (other, other_normal, other_gradient) = random_problem(seed as u64 + 60, freedom);
+            let mut state = seed as u64;
+            let x = Increment::from_fn(|_, _| splitmix(&mut state) - 0.5);
+            let expected = normal * x;
+            assert!((blocks.apply(&x) - expected).norm() <= 1e-12 * expected.norm());
+            assert_eq!(blocks.gradient(), gradient);
+            let mut sum = blocks.clone();
+            sum.add(&other, &x);
+            let (sum_normal, sum_gradient) = dense(&sum);
+            assert!((sum_normal - (normal + other_normal)).norm() <= 1e-12 * normal.norm());
+            let expected_gradient = gradient + other_gradient + x;
+            assert!((sum_gradient - expected_gradient).norm() <= 1e-12 * expected_gradient.norm());
         }
     }
 

@@ -11,6 +11,7 @@
 
 use super::config::CalibrationConfig;
 use super::error::CalibrationError;
+use super::folded::FoldedInformation;
 use super::frame_store::FrameView;
 use super::model::{for_each_observation, WorkcellModel};
 use super::normal_blocks::{Freedom, MarginalCovariance, NormalBlocks};
@@ -32,6 +33,8 @@ pub struct Problem<'a> {
     pub reference_radius_m: f64,
     /// Fix `base_translation.z` (known disc height) instead of estimating it.
     pub fix_base_height: bool,
+    /// The observations the store had no room for, as normal equations.
+    pub folded: Option<&'a FoldedInformation>,
 }
 
 /// Robust weighting of one phase: Huber threshold and optional hard gate (pixels).
@@ -103,7 +106,7 @@ fn total_cost(problem: &Problem<'_>, model: &WorkcellModel, loss: &Loss) -> f64 
             };
         },
     );
-    cost
+    cost + problem.folded.map_or(0.0, |folded| folded.cost(model))
 }
 
 /// The Gauss-Newton normal equations at `model`, in arrowhead blocks written into the
@@ -134,12 +137,16 @@ fn normal_equations(
             blocks.accumulate(&jacobian.camera, &jacobian.other, &residual, weight);
         },
     );
+    if let Some(folded) = problem.folded {
+        folded.add_to(blocks, model);
+    }
 }
 
 /// What the data can move: unused feature slots, the base without sightings and a
 /// known base height are held.
 fn freedom(problem: &Problem<'_>) -> Freedom {
-    let base = !problem.effectors.is_empty();
+    let base = !problem.effectors.is_empty()
+        || problem.folded.is_some_and(|folded| folded.sightings() > 0);
     Freedom {
         feature_count: problem.feature_count,
         base_free: [base, base, base, base && !problem.fix_base_height],
@@ -310,6 +317,11 @@ fn fit(
             _ => outliers += 1,
         },
     );
+    if let Some(folded) = problem.folded {
+        sum_squares += folded.squares();
+        kept = kept.saturating_add(folded.points());
+        outliers = outliers.saturating_add(folded.outliers());
+    }
     if kept == 0 {
         return Err(CalibrationError::NumericalFailure {
             stage: "bundle adjustment (no inliers)",

@@ -2,9 +2,17 @@
 //! memory is bounded independently of how many frames a run produces.
 //!
 //! Items are kept when their offer index is a multiple of `stride`. When the store is
-//! full, every other kept item is dropped (those left are exactly the multiples of
-//! `2 * stride`) and the stride doubles: the kept set is always an evenly spaced subsample
-//! of everything offered, independent of timing, so a run is reproducible.
+//! full, the items off the doubled stride are dropped (those left are exactly the
+//! multiples of `2 * stride`): the kept set is always an evenly spaced subsample of
+//! everything offered, independent of timing, so a run is reproducible.
+//!
+//! A store whose dropped items are folded into normal equations
+//! ([`super::folded`]) must not drop half of itself in one offer: folding 128 frames
+//! at once would cost the M4F tens of millions of instructions in one frame. Its
+//! items off the doubled stride stay in place (still raw, still in every estimate)
+//! until a new item needs their slot: then one is folded and overwritten
+//! ([`ThinningSchedule::place`]). One fold per offer at most, and the kept set is
+//! the same evenly spaced subsample once the pass is over.
 
 use heapless::Vec;
 
@@ -15,12 +23,23 @@ pub enum Admission {
     Skip,
     /// On the stride and there is room: keep it.
     Keep,
-    /// The store is full: drop every other kept item first (keep positions 0, 2, 4 ...),
-    /// then keep this one if it is still on the (doubled) stride.
+    /// The store is full: drop the kept items off the doubled stride first, then
+    /// keep this one if it is still on it.
     Halve {
         /// Whether the new item is kept after halving.
         keep: bool,
     },
+}
+
+/// Where a store that folds what it drops puts an offered item (see the module doc).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Placement {
+    /// Off the stride: fold the offered item itself.
+    FoldOffered,
+    /// There is room: append it.
+    Append,
+    /// Fold the item in this slot (off the stride), then put the offered one there.
+    Replace(usize),
 }
 
 /// The thinning rule itself, shared by every store that thins (see the module doc).
@@ -41,18 +60,54 @@ impl ThinningSchedule {
 
     /// Decides the next offered item's fate for a store holding `len` of `capacity`.
     pub fn admit(&mut self, len: usize, capacity: usize) -> Admission {
-        let index = self.offered;
-        self.offered = self.offered.saturating_add(1);
-        if capacity == 0 || !index.is_multiple_of(self.stride) {
+        let index = self.next_index();
+        if capacity == 0 || !self.on_stride(index) {
             return Admission::Skip;
         }
         if len >= capacity {
             self.stride = self.stride.saturating_mul(2);
             return Admission::Halve {
-                keep: index.is_multiple_of(self.stride),
+                keep: self.on_stride(index),
             };
         }
         Admission::Keep
+    }
+
+    /// Decides where the next offered item goes in a store that folds what it drops
+    /// and holds the items offered at `indices` (in any order) of `capacity`; returns
+    /// the item's offer index with it. At most one item is folded per offer.
+    pub fn place(&mut self, indices: &[u32], capacity: usize) -> (u32, Placement) {
+        let index = self.next_index();
+        if capacity == 0 || !self.on_stride(index) {
+            return (index, Placement::FoldOffered);
+        }
+        if indices.len() < capacity {
+            return (index, Placement::Append);
+        }
+        if let Some(slot) = self.off_stride_slot(indices) {
+            return (index, Placement::Replace(slot));
+        }
+        // Full and every item on the stride: the next pass of halving begins.
+        self.stride = self.stride.saturating_mul(2);
+        match self.off_stride_slot(indices) {
+            Some(slot) if self.on_stride(index) => (index, Placement::Replace(slot)),
+            _ => (index, Placement::FoldOffered),
+        }
+    }
+
+    /// Whether an item offered at `index` is on the current stride.
+    pub fn on_stride(&self, index: u32) -> bool {
+        index.is_multiple_of(self.stride.max(1))
+    }
+
+    fn off_stride_slot(&self, indices: &[u32]) -> Option<usize> {
+        indices.iter().position(|&index| !self.on_stride(index))
+    }
+
+    fn next_index(&mut self) -> u32 {
+        let index = self.offered;
+        self.offered = self.offered.saturating_add(1);
+        index
     }
 
     /// How many items were offered in total (kept or not).
@@ -71,6 +126,8 @@ impl Default for ThinningSchedule {
 #[derive(Debug, Clone)]
 pub struct ThinningStore<T, const N: usize> {
     items: Vec<T, N>,
+    /// Each item's offer index.
+    indices: Vec<u32, N>,
     schedule: ThinningSchedule,
 }
 
@@ -79,32 +136,61 @@ impl<T: Copy, const N: usize> ThinningStore<T, N> {
     pub const fn new() -> Self {
         Self {
             items: Vec::new(),
+            indices: Vec::new(),
             schedule: ThinningSchedule::new(),
         }
     }
 
     /// Offer one item; it is kept if it falls on the current stride.
     pub fn offer(&mut self, item: T) {
+        let index = self.schedule.offered();
         let keep = match self.schedule.admit(self.items.len(), N) {
             Admission::Skip => false,
             Admission::Keep => true,
             Admission::Halve { keep } => {
-                let mut position = 0usize;
-                self.items.retain(|_| {
-                    let kept = position.is_multiple_of(2);
-                    position += 1;
-                    kept
-                });
+                let schedule = self.schedule;
+                let mut slot = 0;
+                while let Some(&kept_index) = self.indices.get(slot) {
+                    if schedule.on_stride(kept_index) {
+                        slot += 1;
+                    } else {
+                        self.items.remove(slot);
+                        self.indices.remove(slot);
+                    }
+                }
                 keep
             }
         };
-        if keep {
-            // Fails only for N == 1, where halving frees nothing: the item is dropped.
-            let _ = self.items.push(item);
+        // Fails only for N == 1, where halving frees nothing: the item is dropped.
+        if keep && self.items.push(item).is_ok() && self.indices.push(index).is_err() {
+            self.items.pop();
         }
     }
 
-    /// The kept items, oldest first.
+    /// [`ThinningStore::offer`] for a store that folds what it drops: `fold` gets
+    /// every item that leaves, at most one per offer (see the module doc).
+    pub fn offer_folding(&mut self, item: T, mut fold: impl FnMut(&T)) {
+        let (index, placement) = self.schedule.place(&self.indices, N);
+        match placement {
+            Placement::FoldOffered => fold(&item),
+            Placement::Append => {
+                if self.items.push(item).is_ok() && self.indices.push(index).is_err() {
+                    self.items.pop();
+                }
+            }
+            Placement::Replace(slot) => {
+                if let (Some(kept), Some(kept_index)) =
+                    (self.items.get_mut(slot), self.indices.get_mut(slot))
+                {
+                    fold(kept);
+                    *kept = item;
+                    *kept_index = index;
+                }
+            }
+        }
+    }
+
+    /// The kept items, in no particular order once the store has folded.
     pub fn items(&self) -> &[T] {
         &self.items
     }
@@ -138,6 +224,33 @@ mod tests {
         assert_eq!(store.items().len(), 5);
         assert_eq!(store.items(), &[0, 8, 16, 24, 32]);
         assert_eq!(store.offered(), 40);
+    }
+
+    #[test]
+    fn folding_drops_one_item_an_offer_and_keeps_the_same_subsample() {
+        let mut plain: ThinningStore<u32, 8> = ThinningStore::new();
+        let mut folding: ThinningStore<u32, 8> = ThinningStore::new();
+        let mut folded = std::vec::Vec::new();
+        for i in 0..200 {
+            plain.offer(i);
+            let before = folded.len();
+            folding.offer_folding(i, |item| folded.push(*item));
+            assert!(
+                folded.len() - before <= 1,
+                "offer {i} folded {}",
+                folded.len() - before
+            );
+            let mut kept = folding.items().to_vec();
+            kept.sort_unstable();
+            // Between passes the folding store holds what the plain one does, and
+            // nothing is lost in any case.
+            if kept.len() == plain.items().len() {
+                assert_eq!(kept, plain.items(), "offer {i}");
+            }
+            let mut all: std::vec::Vec<u32> = kept.iter().chain(&folded).copied().collect();
+            all.sort_unstable();
+            assert_eq!(all, (0..=i).collect::<std::vec::Vec<_>>());
+        }
     }
 
     #[test]

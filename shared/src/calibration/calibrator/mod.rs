@@ -22,6 +22,7 @@ use nalgebra::{Vector2, Vector3};
 use super::config::CalibrationConfig;
 use super::conic::{Conic, ConicFit};
 use super::error::CalibrationError;
+use super::folded::{FoldLoss, FoldedInformation};
 use super::frame_store::{FrameStore, FULL_FRAME_PIXELS};
 use super::model::WorkcellModel;
 use super::pinhole::Pinhole;
@@ -67,6 +68,13 @@ pub struct SelfCalibrator<
     /// Accepted frames with at least one detection.
     frames_used: u32,
     last_t_s: Option<f64>,
+    /// The last estimate, its loss and whether it estimated the base: what
+    /// [`SelfCalibrator::adopt_last_estimate`] linearises at.
+    last_estimate: Option<(WorkcellModel, FoldLoss, bool)>,
+    /// What the stores had no room for since an estimate was adopted.
+    folded: Option<FoldedInformation>,
+    /// Times the folded information was found inconsistent and dropped.
+    folds_discarded: u32,
 }
 
 /// A small instance: 96 frames, 16 effector sightings (9 696 B on x86-64).
@@ -92,6 +100,9 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
             offered: 0,
             frames_used: 0,
             last_t_s: None,
+            last_estimate: None,
+            folded: None,
+            folds_discarded: 0,
         })
     }
 
@@ -111,17 +122,60 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
         }
         let detected =
             record.centre.is_some() || record.reference.is_some() || record.part.is_some();
+        let pinhole = self.pinhole;
         if let Some(sighting) = &frame.effector {
-            self.effectors
-                .offer(EffectorRecord::from_sighting(sighting));
+            let sighting = EffectorRecord::from_sighting(sighting);
+            match &mut self.folded {
+                Some(folded) if folded.base_estimated() => self
+                    .effectors
+                    .offer_folding(sighting, |leaving| folded.fold_sighting(&pinhole, leaving)),
+                _ => self.effectors.offer(sighting),
+            }
         }
         if detected || frame.effector.is_some() {
             self.frames_used = self.frames_used.saturating_add(1);
         }
         if detected {
-            self.frames.offer(&record);
+            let (feature_count, radius) = (
+                self.header.part_feature_count,
+                self.header.reference_radius_m,
+            );
+            match &mut self.folded {
+                Some(folded) => self.frames.offer_folding(&record, |leaving| {
+                    folded.fold_frame(&pinhole, leaving, feature_count, radius)
+                }),
+                None => self.frames.offer(&record),
+            }
         }
         Ok(())
+    }
+
+    /// From now on, what the stores have no room for is folded into normal
+    /// equations linearised at the last estimate (see [`super::folded`]) instead of
+    /// being thinned away. Call it with an
+    /// estimate the caller trusts: the pick does once its checks pass. Each later
+    /// call moves the linearisation to the newer estimate. False when there is no
+    /// estimate to adopt.
+    pub fn adopt_last_estimate(&mut self) -> bool {
+        let Some((model, loss, base_estimated)) = self.last_estimate else {
+            return false;
+        };
+        match &mut self.folded {
+            Some(folded) => folded.move_to(&model, base_estimated, loss),
+            None => self.folded = Some(FoldedInformation::new(model, base_estimated, loss)),
+        }
+        true
+    }
+
+    /// How many times folded information disagreed with the estimate and was
+    /// discarded (see [`FoldedInformation::consistent_with`]).
+    pub fn folds_discarded(&self) -> u32 {
+        self.folds_discarded
+    }
+
+    /// What has been folded so far (`None` before [`SelfCalibrator::adopt_last_estimate`]).
+    pub fn folded(&self) -> Option<&FoldedInformation> {
+        self.folded.as_ref()
     }
 
     /// Frames offered to `push` so far (accepted or rejected).
@@ -148,8 +202,22 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
         &mut self,
     ) -> Result<(CalibrationResult, EstimateUncertainty), CalibrationError> {
         let initial = self.initial_model()?;
-        let problem = self.problem();
-        let refined = refine(&problem, initial, &self.config)?;
+        let mut refined = refine(&self.problem(), initial, &self.config)?;
+        let inconsistent = self
+            .folded
+            .as_ref()
+            .is_some_and(|folded| !folded.consistent_with(&refined.model, refined.pixel_sigma_px));
+        if inconsistent {
+            self.folded = None;
+            self.folds_discarded = self.folds_discarded.saturating_add(1);
+            refined = refine(&self.problem(), initial, &self.config)?;
+        }
+        let sigma = refined.pixel_sigma_px;
+        let loss = FoldLoss {
+            huber_px: self.config.huber_k * sigma,
+            gate_px: self.config.outlier_gate_sigma * sigma.max(self.config.pixel_sigma),
+        };
+        self.last_estimate = Some((refined.model, loss, self.base_observed()));
         let uncertainty = refined
             .covariance
             .as_ref()
@@ -168,6 +236,15 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
         ))
     }
 
+    /// Whether any sighting, stored or folded, constrains the base.
+    fn base_observed(&self) -> bool {
+        !self.effectors.items().is_empty()
+            || self
+                .folded
+                .as_ref()
+                .is_some_and(|folded| folded.sightings() > 0)
+    }
+
     fn problem(&self) -> Problem<'_> {
         Problem {
             pinhole: self.pinhole,
@@ -176,6 +253,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
             feature_count: self.header.part_feature_count,
             reference_radius_m: self.header.reference_radius_m,
             fix_base_height: self.config.disc_height_in_base_m.is_some(),
+            folded: self.folded.as_ref(),
         }
     }
 
@@ -253,7 +331,8 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
                 frames_used: self.frames_used,
                 rms_reprojection_px: rms_px,
                 effector_frames_used: u32::try_from(self.effectors.items().len())
-                    .unwrap_or(u32::MAX),
+                    .unwrap_or(u32::MAX)
+                    .saturating_add(self.folded.as_ref().map_or(0, |f| f.sightings())),
                 outliers_rejected: outliers,
                 pixel_sigma_px,
             },
