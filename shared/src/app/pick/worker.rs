@@ -166,6 +166,9 @@ impl PickWorker {
         if !at_most(rejected, self.settings.max_rejected_fraction) {
             return Err(FaultCause::CalibrationFailed);
         }
+        // Trusted: what the calibrator's stores have no room for from now on is
+        // folded at this estimate rather than thinned away.
+        self.calibrator.adopt_last_estimate();
         if preliminary {
             let poses = calibration_poses(
                 &estimate,
