@@ -34,6 +34,10 @@ const CONTROL_CYCLE_LIMIT: u32 = 15_000;
 /// where the interrupts land in the bundle adjustment); the limit catches a
 /// regression well before the budget.
 const STACK_LIMIT_BYTES: u32 = 32 * 1024;
+/// The calibrator's per-frame update on the M4F (issue 20): validation, the
+/// conic's recursive least squares and, once its stores are full, folding one
+/// frame into its normal equations.
+const OBSERVATION_LIMIT: u32 = 200_000;
 
 fn runtime_report<L: host_sim::link::ByteLink>(link: &mut FramedLink<L>) -> RuntimeReport {
     link.send(&Message::RuntimeReportRequest)
@@ -206,6 +210,13 @@ fn the_emulated_firmware_picks_the_part_as_the_in_process_controller_does() {
             "{kind}: {measured} instructions, the board-timing model says {model}: update it"
         );
     }
+    // The calibrator's per-frame update, folding included once its stores
+    // are full (issue 20's budget: 200,000 instructions a frame).
+    assert!(
+        report.job_worst.observation > 0 && report.job_worst.observation <= OBSERVATION_LIMIT,
+        "worst observation {} instructions",
+        report.job_worst.observation
+    );
     // Lock step: the loop waits for a due result instead of missing a deadline.
     assert_eq!(report.late_results, 0, "{report:?}");
     assert_eq!(report.messages_dropped, 0, "{report:?}");
@@ -213,7 +224,7 @@ fn the_emulated_firmware_picks_the_part_as_the_in_process_controller_does() {
     let figures = format!(
         "{{\"experiment\":\"{EXPERIMENT}\",\"seed\":{SEED},\"wall_s\":{:.1},\"control_ticks\":{},\
          \"control_worst_instructions\":{},\"control_mean_instructions\":{},\"jobs_run\":{},\
-         \"job_worst_instructions\":{},\"estimate_preliminary_instructions\":{},\"estimate_final_instructions\":{},\"plan_instructions\":{},\"stack_used_bytes\":{},\"deadline_misses_at_168mhz\":{}}}\n",
+         \"job_worst_instructions\":{},\"estimate_preliminary_instructions\":{},\"estimate_final_instructions\":{},\"plan_instructions\":{},\"observation_instructions\":{},\"stack_used_bytes\":{},\"deadline_misses_at_168mhz\":{}}}\n",
         wall.as_secs_f64(),
         report.control_ticks,
         report.control_worst,
@@ -223,6 +234,7 @@ fn the_emulated_firmware_picks_the_part_as_the_in_process_controller_does() {
         report.job_worst.estimate_preliminary,
         report.job_worst.estimate_final,
         report.job_worst.plan,
+        report.job_worst.observation,
         report.stack_used_bytes,
         report.deadline_misses
     );

@@ -87,17 +87,22 @@ pub enum JobKind {
     EstimateFinal,
     /// An intercept plan.
     Plan,
+    /// One observation absorbed by the calibrator (not counted as a job).
+    Observation,
 }
 
-/// One background job of `kind` cost `cost` units.
+/// One background job (or observation) of `kind` cost `cost` units.
 pub fn record_job(kind: JobKind, cost: u32) {
     critical_section::with(|cs| {
         let mut costs = COSTS.borrow_ref_mut(cs);
-        costs.jobs_run = costs.jobs_run.saturating_add(1);
+        if kind != JobKind::Observation {
+            costs.jobs_run = costs.jobs_run.saturating_add(1);
+        }
         let worst = match kind {
             JobKind::EstimatePreliminary => &mut costs.job_worst.estimate_preliminary,
             JobKind::EstimateFinal => &mut costs.job_worst.estimate_final,
             JobKind::Plan => &mut costs.job_worst.plan,
+            JobKind::Observation => &mut costs.job_worst.observation,
         };
         *worst = (*worst).max(cost);
     });

@@ -98,19 +98,22 @@ fn poll_work(
     }
     let started = cycles.now();
     *news = pick_worker.process(&item);
-    if let WorkItem::Job(ticket) = &item {
-        let cost = cycles
-            .now()
-            .wrapping_sub(started)
-            .saturating_mul(cycles.scale());
-        let kind = match ticket.request {
+    let cost = cycles
+        .now()
+        .wrapping_sub(started)
+        .saturating_mul(cycles.scale());
+    let kind = match &item {
+        WorkItem::Observation(_) => stats::JobKind::Observation,
+        WorkItem::Job(ticket) => match ticket.request {
             JobRequest::Estimate {
                 preliminary: true, ..
             } => stats::JobKind::EstimatePreliminary,
             JobRequest::Estimate { .. } => stats::JobKind::EstimateFinal,
             JobRequest::Plan { .. } => stats::JobKind::Plan,
-        };
-        stats::record_job(kind, cost);
+        },
+    };
+    stats::record_job(kind, cost);
+    if kind != stats::JobKind::Observation {
         defmt::info!("worker: {} done, {} {}", kind, cost, cycles.unit());
     }
     Poll::Ready(None)

@@ -1,6 +1,7 @@
-//! The messages of protocol v5 (v1's, with `TriggerEvent` and
+//! The messages of protocol v6 (v1's, with `TriggerEvent` and
 //! `CostUnit::Nanoseconds` appended in v2; `CellConfig` without the pixel
-//! noise in v3; the homing inputs in `SensorSample` and `CellConfig` in v5). They are postcard-encoded, so the order of
+//! noise in v3; the homing inputs in `SensorSample` and `CellConfig` in v5;
+//! the calibrator's per-observation cost in `JobCosts` in v6). They are postcard-encoded, so the order of
 //! fields and of enum variants is part of the wire format: append, never reorder.
 
 use heapless::{String, Vec};
@@ -357,6 +358,10 @@ pub struct JobCosts {
     pub estimate_final: u32,
     /// An intercept plan.
     pub plan: u32,
+    /// One observation absorbed by the self-calibrator (not a job: the per-frame
+    /// update, validation, Step 2's recursive conic and, once its stores are
+    /// full, folding one frame into its normal equations). Protocol version 6.
+    pub observation: u32,
 }
 
 impl JobCosts {
@@ -365,9 +370,10 @@ impl JobCosts {
         estimate_preliminary: 0,
         estimate_final: 0,
         plan: 0,
+        observation: 0,
     };
 
-    /// The worst of the three.
+    /// The worst of the three jobs.
     pub fn worst(&self) -> u32 {
         self.estimate_preliminary
             .max(self.estimate_final)

@@ -38,9 +38,11 @@ pub use messages::*;
 /// v5: homing at power-on: `SensorSample::joint_pots_rad` and
 /// `SensorSample::joint_index_counts`, `CellConfig::home_at_power_on`,
 /// `FaultCause::HomingPotentiometer` and `FaultCause::HomingIndexNotSeen`.
+/// v6: `JobCosts::observation`, the worst per-frame update of the
+/// self-calibrator (which now folds what its stores have no room for).
 /// The handshake
 /// refuses any other version with `UnsupportedVersion` (detail: this one).
-pub const PROTOCOL_VERSION: u16 = 5;
+pub const PROTOCOL_VERSION: u16 = 6;
 
 #[cfg(test)]
 mod tests;

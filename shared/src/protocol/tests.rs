@@ -183,6 +183,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                     estimate_preliminary: v[3],
                     estimate_final: v[3] / 3,
                     plan: v[3] ^ 7,
+                    observation: v[3] / 5,
                 },
                 stack_used_bytes: v[4],
                 stack_size_bytes: v[5],
@@ -404,11 +405,11 @@ fn the_documented_frame_limits_hold() {
 
 /// The v2 additions are appended: every v1 message keeps its encoding (the
 /// new variants' indices come after the old ones). v3 changed `CellConfig`
-/// only, v4 appended two fault causes, v5 the homing inputs, and the
-/// version says so.
+/// only, v4 appended two fault causes, v5 the homing inputs, v6 the
+/// observation's cost in `JobCosts`, and the version says so.
 #[test]
 fn v2_appends_the_trigger_event_and_keeps_v1_encodings() {
-    assert_eq!(PROTOCOL_VERSION, 5);
+    assert_eq!(PROTOCOL_VERSION, 6);
     // postcard writes the variant index first: RuntimeReport was the last of
     // v1 (index 13), TriggerEvent is 14.
     let event = wire_bytes(&Message::TriggerEvent(TriggerEvent {
