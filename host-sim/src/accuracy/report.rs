@@ -161,9 +161,10 @@ const LIMIT_METRICS: [&str; 6] = [
 ];
 
 /// The calibrator (refined) beside the batch solve over every frame, per
-/// scenario that ran both: median / 95th of each, and the ratio of the 95th
-/// percentiles (calibrator / batch; 1 is the maximum-likelihood limit).
-fn maximum_likelihood_limit(out: &mut String, rows: &[SummaryRow]) {
+/// scenario that ran both: median / 95th of each, the ratio of the 95th
+/// percentiles (calibrator / batch; 1 is the maximum-likelihood limit) and,
+/// paired on the same logs, the median of the per-trial ratio of the errors.
+fn maximum_likelihood_limit(out: &mut String, rows: &[SummaryRow], outcomes: &[TrialOutcome]) {
     let pairs: Vec<(&SummaryRow, &SummaryRow)> = rows
         .iter()
         .filter(|r| r.method == Method::Batch)
@@ -182,32 +183,49 @@ fn maximum_likelihood_limit(out: &mut String, rows: &[SummaryRow]) {
         "\n## The maximum-likelihood limit: the calibrator against a batch solve over every frame\n\n\
          The batch solve (`host_sim::batch_ml`) minimises the squared reprojection errors of every \
          frame and every end-effector sighting (no thinning, f64 pixels; points beyond 5 robust \
-         sigmas gated), started from the calibrator's estimate. Ratio: the calibrator's 95th \
-         percentile over the batch's.\n"
+         sigmas gated), started from the calibrator's estimate. 95th ratio: the calibrator's 95th \
+         percentile over the batch's. Paired ratio: the median over the trials of the calibrator's \
+         error over the batch's on the same log.\n"
     );
     let _ = writeln!(
         out,
-        "| scenario | metric | calibrator | batch | 95th ratio |"
+        "| scenario | metric | calibrator | batch | 95th ratio | paired ratio |"
     );
-    let _ = writeln!(out, "|---|---|---|---|---|");
+    let _ = writeln!(out, "|---|---|---|---|---|---|");
     for (refined, batch) in pairs {
         for metric in LIMIT_METRICS {
-            let (Some(calibrator), Some(limit)) = (refined.metric(metric), batch.metric(metric))
-            else {
+            let (Some(calibrator), Some(limit), Some(column)) = (
+                refined.metric(metric),
+                batch.metric(metric),
+                METRIC_COLUMNS.iter().find(|c| c.name == metric),
+            ) else {
                 continue;
             };
             let ratio = match (calibrator.p95, limit.p95) {
                 (Some(a), Some(b)) if b > 0.0 => format!("{:.2}", a / b),
                 _ => "-".to_string(),
             };
+            let paired: Vec<f64> = outcomes
+                .iter()
+                .filter(|o| o.scenario == batch.scenario)
+                .map(|o| match (&o.refined, &o.batch) {
+                    (Ok(a), Some(Ok(b))) => (column.value)(a) / (column.value)(b),
+                    _ => f64::INFINITY,
+                })
+                .collect();
+            let paired = match finite(median(&paired)) {
+                Some(value) => format!("{value:.2}"),
+                None => "-".to_string(),
+            };
             let _ = writeln!(
                 out,
-                "| {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} |",
                 batch.scenario,
                 metric,
                 median_p95(Some(calibrator)),
                 median_p95(Some(limit)),
-                ratio
+                ratio,
+                paired
             );
         }
     }
@@ -305,7 +323,7 @@ pub fn markdown(
         }
     }
 
-    maximum_likelihood_limit(&mut out, rows);
+    maximum_likelihood_limit(&mut out, rows, outcomes);
     tilt_breakdown(&mut out, outcomes, &["paper", "near-axis"]);
     uncertainty_coverage(&mut out, outcomes, rows);
 
@@ -496,7 +514,9 @@ mod tests {
         let report = markdown(&rows, &outcomes, 1, 1, &[]);
         assert!(report.contains("| paper | batch | 0/1 |"), "{report}");
         assert!(
-            report.contains("| paper | part_position_mm | 2.000 / 2.000 | 1.000 / 1.000 | 2.00 |"),
+            report.contains(
+                "| paper | part_position_mm | 2.000 / 2.000 | 1.000 / 1.000 | 2.00 | 2.00 |"
+            ),
             "{report}"
         );
         assert_eq!(trials_csv(&outcomes).lines().count(), 4);
