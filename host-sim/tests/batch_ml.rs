@@ -232,3 +232,53 @@ fn a_gross_outlier_is_gated() {
     assert_eq!(pulled.result.quality.outliers_rejected, 0);
     assert!(largest_difference(&pulled.result, &clean.result) > 1e-5);
 }
+
+/// `host-sim record --frames` then `host-sim calibrate --batch --truth`: the
+/// batch result on stdout in the contract's JSON with its Cramér-Rao sigmas,
+/// the errors of both estimates on stderr.
+#[test]
+fn calibrate_batch_prints_the_result_and_both_estimates_errors() {
+    let folder = tempfile::tempdir().expect("temporary folder");
+    let log = folder.path().join("run.jsonl");
+    let host_sim = |args: &[&std::ffi::OsStr]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(args)
+            .output()
+            .expect("host-sim runs")
+    };
+    let recorded = host_sim(&[
+        "record".as_ref(),
+        "--scenario".as_ref(),
+        "paper".as_ref(),
+        "--frames".as_ref(),
+        "400".as_ref(),
+        "-o".as_ref(),
+        log.as_os_str(),
+    ]);
+    assert!(recorded.status.success(), "{recorded:?}");
+    let truth = folder.path().join("run.truth.json");
+    let output = host_sim(&[
+        "calibrate".as_ref(),
+        "--batch".as_ref(),
+        "--truth".as_ref(),
+        truth.as_os_str(),
+        log.as_os_str(),
+    ]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    let printed: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    let result: CalibrationResult = serde_json::from_value(printed.clone()).expect("a result");
+    assert_eq!(result.quality.frames_used, 400);
+    let sigma = printed["uncertainty_1sigma"]["part_position_m"][0]
+        .as_f64()
+        .expect("part position sigma");
+    assert!(sigma > 0.0 && sigma < 0.005, "{sigma}");
+    for needle in [
+        "batch maximum-likelihood estimate",
+        "measured pixel sigma",
+        "batch errors: feature_mm",
+        "calibrator errors: feature_mm",
+    ] {
+        assert!(stderr.contains(needle), "{needle} missing: {stderr}");
+    }
+}
