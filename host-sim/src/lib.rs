@@ -6,6 +6,7 @@
 //! - [`pick`]: the full pick against the controller: lock-step runner, records, reports, CSV, plots, Monte Carlo, fault campaign.
 //! - [`recording`]: synthetic observation logs and their truth files from random workcells.
 //! - [`calibration`]: self-calibration of an observation log on the host.
+//! - [`batch_ml`]: the maximum-likelihood limit of a log: a full batch solve over every frame.
 //! - [`accuracy`]: the seeded Monte-Carlo accuracy runs of the self-calibration.
 //! - [`log`]: the observation log (JSON Lines) reader and writer.
 //! - [`link`]: links to the controller (in process, emulator UART over TCP, serial port) and the link check.
@@ -14,6 +15,7 @@
 //! - [`homing`]: power-on homing trials against the drawn counter offsets.
 
 pub mod accuracy;
+pub mod batch_ml;
 pub mod calibration;
 pub mod commands;
 pub mod geometry;

@@ -155,6 +155,7 @@ fn noise_free_workcells_are_recovered_exactly() {
         // The paper's own method is exact without noise too.
         let paper = outcome
             .errors(Method::Paper)
+            .expect("the paper's method always runs")
             .as_ref()
             .expect("paper estimate");
         assert_tight(paper);

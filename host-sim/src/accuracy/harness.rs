@@ -1,6 +1,7 @@
 //! The Monte-Carlo harness: one trial = one random workcell recorded under a
 //! scenario, calibrated by the refined estimator and by the paper's own
-//! two-frame method, both compared with the truth. Trials run in parallel
+//! two-frame method (and, on request, by the full batch maximum-likelihood
+//! solve of [`crate::batch_ml`]), each compared with the truth. Trials run in parallel
 //! (rayon); every trial's seed is derived from the base seed, the scenario
 //! family and the trial number, so results do not depend on thread scheduling.
 
@@ -11,6 +12,7 @@ use shared::calibration::{CalibrationConfig, CalibrationError};
 use shared::observation::CalibrationResult;
 
 use super::metrics::{compare, ErrorMetrics};
+use crate::batch_ml::batch_estimate;
 use crate::calibration::{calibrate_log, part_sigmas_m};
 use crate::recording::simulate;
 use crate::scenario::Scenario;
@@ -23,15 +25,19 @@ pub enum Method {
     Refined,
     /// `SelfCalibrator::paper_estimate`: Eq 8 with two frames, Eq 15 with one pose.
     Paper,
+    /// `batch_ml::batch_estimate`: the full batch solve over every frame, the
+    /// maximum-likelihood limit of the same log (run with `accuracy --batch`).
+    Batch,
 }
 
 impl Method {
-    pub const ALL: [Method; 2] = [Method::Refined, Method::Paper];
+    pub const ALL: [Method; 3] = [Method::Refined, Method::Paper, Method::Batch];
 
     pub fn name(self) -> &'static str {
         match self {
             Method::Refined => "refined",
             Method::Paper => "paper",
+            Method::Batch => "batch",
         }
     }
 }
@@ -61,13 +67,17 @@ pub struct TrialOutcome {
     /// Errors per method, or why that method (or the trial) failed.
     pub refined: Result<ErrorMetrics, String>,
     pub paper: Result<ErrorMetrics, String>,
+    /// The batch solve's errors; `None` when it was not asked for.
+    pub batch: Option<Result<ErrorMetrics, String>>,
 }
 
 impl TrialOutcome {
-    pub fn errors(&self, method: Method) -> &Result<ErrorMetrics, String> {
+    /// The errors of `method`, `None` when that method was not run.
+    pub fn errors(&self, method: Method) -> Option<&Result<ErrorMetrics, String>> {
         match method {
-            Method::Refined => &self.refined,
-            Method::Paper => &self.paper,
+            Method::Refined => Some(&self.refined),
+            Method::Paper => Some(&self.paper),
+            Method::Batch => self.batch.as_ref(),
         }
     }
 }
@@ -78,6 +88,8 @@ pub struct HarnessOptions {
     pub calibration: CalibrationConfig,
     /// Experiment 2 of the paper: give the estimator the true disc height in the base frame.
     pub disc_height_known: bool,
+    /// Also run the batch maximum-likelihood solve, started from the refined estimate.
+    pub batch: bool,
 }
 
 fn splitmix64(mut x: u64) -> u64 {
@@ -132,7 +144,8 @@ pub fn run_trial(plan: &TrialPlan, options: &HarnessOptions) -> TrialOutcome {
         camera_tilt_deg: f64::NAN,
         refined_part_sigma_mm: None,
         refined: Err(message.clone()),
-        paper: Err(message),
+        paper: Err(message.clone()),
+        batch: options.batch.then_some(Err(message)),
     };
     let run = match simulate(&plan.scenario, plan.seed) {
         Ok(run) => run,
@@ -149,6 +162,12 @@ pub fn run_trial(plan: &TrialPlan, options: &HarnessOptions) -> TrialOutcome {
     };
     match calibrate_log(&run.log, config) {
         Ok(calibration) => TrialOutcome {
+            batch: options.batch.then(|| match &calibration.refined {
+                Ok(start) => batch_estimate(&run.log, &config, start)
+                    .map_err(|e| format!("batch solve: {e}"))
+                    .and_then(|batch| compare(&batch.result, truth).map_err(|e| e.to_string())),
+                Err(e) => Err(format!("no start for the batch solve: {e}")),
+            }),
             scenario: plan.scenario.name.clone(),
             trial: plan.trial,
             seed: plan.seed,

@@ -150,6 +150,87 @@ fn uncertainty_coverage(out: &mut String, outcomes: &[TrialOutcome], rows: &[Sum
     }
 }
 
+/// Metrics of the maximum-likelihood comparison.
+const LIMIT_METRICS: [&str; 6] = [
+    "part_position_mm",
+    "part_yaw_deg",
+    "camera_height_mm",
+    "base_translation_mm",
+    "base_yaw_deg",
+    "part_in_base_mm",
+];
+
+/// The calibrator (refined) beside the batch solve over every frame, per
+/// scenario that ran both: median / 95th of each, the ratio of the 95th
+/// percentiles (calibrator / batch; 1 is the maximum-likelihood limit) and,
+/// paired on the same logs, the median of the per-trial ratio of the errors.
+fn maximum_likelihood_limit(out: &mut String, rows: &[SummaryRow], outcomes: &[TrialOutcome]) {
+    let pairs: Vec<(&SummaryRow, &SummaryRow)> = rows
+        .iter()
+        .filter(|r| r.method == Method::Batch)
+        .filter_map(|batch| {
+            let refined = rows
+                .iter()
+                .find(|r| r.scenario == batch.scenario && r.method == Method::Refined)?;
+            Some((refined, batch))
+        })
+        .collect();
+    if pairs.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        out,
+        "\n## The maximum-likelihood limit: the calibrator against a batch solve over every frame\n\n\
+         The batch solve (`host_sim::batch_ml`) minimises the squared reprojection errors of every \
+         frame and every end-effector sighting (no thinning, f64 pixels; points beyond 5 robust \
+         sigmas gated), started from the calibrator's estimate. 95th ratio: the calibrator's 95th \
+         percentile over the batch's. Paired ratio: the median over the trials of the calibrator's \
+         error over the batch's on the same log.\n"
+    );
+    let _ = writeln!(
+        out,
+        "| scenario | metric | calibrator | batch | 95th ratio | paired ratio |"
+    );
+    let _ = writeln!(out, "|---|---|---|---|---|---|");
+    for (refined, batch) in pairs {
+        for metric in LIMIT_METRICS {
+            let (Some(calibrator), Some(limit), Some(column)) = (
+                refined.metric(metric),
+                batch.metric(metric),
+                METRIC_COLUMNS.iter().find(|c| c.name == metric),
+            ) else {
+                continue;
+            };
+            let ratio = match (calibrator.p95, limit.p95) {
+                (Some(a), Some(b)) if b > 0.0 => format!("{:.2}", a / b),
+                _ => "-".to_string(),
+            };
+            let paired: Vec<f64> = outcomes
+                .iter()
+                .filter(|o| o.scenario == batch.scenario)
+                .map(|o| match (&o.refined, &o.batch) {
+                    (Ok(a), Some(Ok(b))) => (column.value)(a) / (column.value)(b),
+                    _ => f64::INFINITY,
+                })
+                .collect();
+            let paired = match finite(median(&paired)) {
+                Some(value) => format!("{value:.2}"),
+                None => "-".to_string(),
+            };
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} | {} | {} | {} |",
+                batch.scenario,
+                metric,
+                median_p95(Some(calibrator)),
+                median_p95(Some(limit)),
+                ratio,
+                paired
+            );
+        }
+    }
+}
+
 /// The markdown report; `notes` are extra lines under the title (e.g. the estimator's settings).
 pub fn markdown(
     rows: &[SummaryRow],
@@ -242,6 +323,7 @@ pub fn markdown(
         }
     }
 
+    maximum_likelihood_limit(&mut out, rows, outcomes);
     tilt_breakdown(&mut out, outcomes, &["paper", "near-axis"]);
     uncertainty_coverage(&mut out, outcomes, rows);
 
@@ -280,7 +362,10 @@ pub fn trials_csv(outcomes: &[TrialOutcome]) -> String {
     out.push('\n');
     for outcome in outcomes {
         for method in Method::ALL {
-            let (status, message, values) = match outcome.errors(method) {
+            let Some(errors) = outcome.errors(method) else {
+                continue;
+            };
+            let (status, message, values) = match errors {
                 Ok(errors) => (
                     "ok",
                     String::new(),
@@ -367,6 +452,7 @@ mod tests {
             refined_part_sigma_mm: refined.as_ref().ok().map(|e| e.part_position_mm / 2.0),
             refined,
             paper: Ok(errors(10.0)),
+            batch: None,
         }
     }
 
@@ -412,6 +498,28 @@ mod tests {
             !report.contains("end effector\n"),
             "no sweep section without sweep rows"
         );
+    }
+
+    #[test]
+    fn the_batch_rows_and_the_limit_section_appear_only_when_the_batch_ran() {
+        let without = [outcome("paper", 0, Ok(errors(2.0)))];
+        let report = markdown(&summarise(&without), &without, 1, 1, &[]);
+        assert!(!report.contains("| paper | batch |"), "{report}");
+        assert!(!report.contains("maximum-likelihood limit"), "{report}");
+        let mut with = outcome("paper", 0, Ok(errors(2.0)));
+        with.batch = Some(Ok(errors(1.0)));
+        let outcomes = [with];
+        let rows = summarise(&outcomes);
+        assert_eq!(rows.len(), 3);
+        let report = markdown(&rows, &outcomes, 1, 1, &[]);
+        assert!(report.contains("| paper | batch | 0/1 |"), "{report}");
+        assert!(
+            report.contains(
+                "| paper | part_position_mm | 2.000 / 2.000 | 1.000 / 1.000 | 2.00 | 2.00 |"
+            ),
+            "{report}"
+        );
+        assert_eq!(trials_csv(&outcomes).lines().count(), 4);
     }
 
     #[test]

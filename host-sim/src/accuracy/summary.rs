@@ -48,12 +48,16 @@ pub fn summarise(outcomes: &[TrialOutcome]) -> Vec<SummaryRow> {
     scenarios
         .iter()
         .flat_map(|scenario| {
-            Method::ALL.into_iter().map(move |method| {
+            Method::ALL.into_iter().filter_map(move |method| {
                 let results: Vec<&Result<ErrorMetrics, String>> = outcomes
                     .iter()
                     .filter(|o| o.scenario == *scenario)
-                    .map(|o| o.errors(method))
+                    .filter_map(|o| o.errors(method))
                     .collect();
+                if results.is_empty() {
+                    // A method not run (the batch solve without `--batch`) has no row.
+                    return None;
+                }
                 let metrics = METRIC_COLUMNS
                     .iter()
                     .map(|column| {
@@ -69,14 +73,14 @@ pub fn summarise(outcomes: &[TrialOutcome]) -> Vec<SummaryRow> {
                         }
                     })
                     .collect();
-                SummaryRow {
+                Some(SummaryRow {
                     scenario: scenario.to_string(),
                     method,
                     trials: results.len(),
                     failures: results.iter().filter(|r| r.is_err()).count(),
                     first_failure: results.iter().find_map(|r| r.as_ref().err().cloned()),
                     metrics,
-                }
+                })
             })
         })
         .collect()

@@ -28,9 +28,18 @@ pub struct Args {
     /// alone, with no value, runs no sweep).
     #[arg(long, value_delimiter = ',', num_args = 0.., default_values_t = [5_usize, 20, 100])]
     pub effector_sweep: Vec<usize>,
+    /// Paper-scenario variants with this many frames over the same revolution
+    /// (comma-separated; e.g. 1800, a 60 s log at 30 Hz, beyond the host calibrator's
+    /// 1024 stored frames); named `paper/frames-N`, same workcells as `paper`.
+    #[arg(long, value_delimiter = ',', num_args = 0..)]
+    pub frame_counts: Vec<usize>,
     /// Experiment 2 of the paper: tell the estimator the true disc height in the base frame.
     #[arg(long)]
     pub disc_height_known: bool,
+    /// Also run the full batch maximum-likelihood solve over every frame per trial
+    /// (started from the calibrator's estimate) and report its errors beside the calibrator's.
+    #[arg(long)]
+    pub batch: bool,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -50,10 +59,19 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             .iter()
             .map(|&count| Scenario::paper().with_effector_frames(count)),
     );
+    if let Some(zero) = args.frame_counts.iter().find(|&&count| count == 0) {
+        anyhow::bail!("--frame-counts: {zero} frames cannot be calibrated");
+    }
+    scenarios.extend(
+        args.frame_counts
+            .iter()
+            .map(|&count| Scenario::paper().with_frames(count)),
+    );
     let plans = plan_trials(&scenarios, args.trials, args.seed);
     let options = HarnessOptions {
         calibration: CalibrationConfig::default(),
         disc_height_known: args.disc_height_known,
+        batch: args.batch,
     };
 
     let mut pool = rayon::ThreadPoolBuilder::new();
@@ -76,6 +94,13 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         "Estimator: `shared::calibration::HostCalibrator` with {:?}.",
         options.calibration
     )];
+    if args.batch {
+        notes.push(
+            "Batch: `host_sim::batch_ml::batch_estimate`, the full least-squares solve over every \
+             frame and sighting of the log, started from the calibrator's estimate."
+                .to_string(),
+        );
+    }
     if args.disc_height_known {
         notes.push(
             "Experiment 2 of the paper: the disc height in the base frame is given to the estimator."

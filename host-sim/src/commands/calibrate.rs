@@ -1,9 +1,13 @@
 //! `host-sim calibrate LOG.jsonl`: stream a log into the self-calibration
 //! (`shared::calibration`), print the contract's calibration-result JSON on
 //! stdout and a short human summary (and, with `--truth`, the errors) on stderr.
+//! With `--batch`, the whole log is held and the full batch maximum-likelihood
+//! solve ([`crate::batch_ml`]) runs from the calibrator's estimate: its result
+//! is printed instead, the calibrator's beside it on stderr.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use anyhow::{anyhow, Context};
 use serde::Serialize;
@@ -11,9 +15,11 @@ use shared::calibration::{CalibrationConfig, EstimateUncertainty};
 use shared::observation::CalibrationResult;
 
 use crate::accuracy::metrics::{compare, ErrorMetrics, METRIC_COLUMNS};
-use crate::calibration::{calibrate_frames, part_height_warning};
-use crate::log::open_log;
-use crate::recording::read_truth_file;
+use crate::batch_ml::batch_estimate;
+use crate::batch_ml::covariance::norm;
+use crate::calibration::{calibrate_frames, calibrate_log, part_height_warning};
+use crate::log::{open_log, read_log_file};
+use crate::recording::{read_truth_file, TruthFile};
 
 /// Calibrate camera, part and robot base from an observation log.
 #[derive(clap::Args, Debug)]
@@ -24,8 +30,12 @@ pub struct Args {
     #[arg(long)]
     pub truth: Option<PathBuf>,
     /// Print the paper's own two-frame estimate instead of the refined one.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "batch")]
     pub paper: bool,
+    /// The maximum-likelihood limit: a full batch solve over every frame and every
+    /// end-effector sighting (unbounded memory), started from the calibrator's estimate.
+    #[arg(long)]
+    pub batch: bool,
     /// Experiment 2 of the paper: the disc surface's known height in the base frame (m).
     #[arg(long)]
     pub disc_height_in_base_m: Option<f64>,
@@ -69,6 +79,80 @@ fn error_lines(label: &str, errors: &ErrorMetrics) -> String {
     format!("{label} errors: {}", cells.join(", "))
 }
 
+fn print_result(
+    result: &CalibrationResult,
+    uncertainty: Option<EstimateUncertainty>,
+) -> anyhow::Result<()> {
+    let mut stdout = std::io::stdout().lock();
+    let printed_result = PrintedResult {
+        result,
+        uncertainty_1sigma: uncertainty,
+    };
+    serde_json::to_writer_pretty(&mut stdout, &printed_result).context("writing the result")?;
+    writeln!(stdout).context("writing the result")
+}
+
+/// `--batch`: the calibrator's estimate as the start, then the batch solve.
+fn run_batch(
+    args: &Args,
+    config: CalibrationConfig,
+    truth: Option<&TruthFile>,
+) -> anyhow::Result<()> {
+    let log = read_log_file(&args.log)?;
+    let calibration =
+        calibrate_log(&log, config).with_context(|| format!("in log {}", args.log.display()))?;
+    // `shared`'s CalibrationError is not a `std::error::Error` yet: formatted here.
+    let start = calibration.refined.as_ref().map_err(|e| {
+        anyhow!(
+            "calibration of {} failed, so the batch solve has no start: {e}",
+            args.log.display()
+        )
+    })?;
+    let started = Instant::now();
+    let batch = batch_estimate(&log, &config, start).with_context(|| batch_context(&args.log))?;
+    let elapsed_s = started.elapsed().as_secs_f64();
+    print_result(&batch.result, Some(batch.uncertainty))?;
+
+    eprintln!(
+        "{}",
+        summary("batch maximum-likelihood estimate", &batch.result)
+    );
+    let u = &batch.uncertainty;
+    eprintln!(
+        "batch: {} of {} image points kept, {} unknowns, {} iterations in {} gate rounds{}, {:.3} s; \
+         measured pixel sigma {:.3} px; Cramer-Rao 1-sigma: part position {:.3} mm, base translation {:.3} mm, \
+         camera height {:.3} mm, base yaw {:.4} deg",
+        batch.observations_kept,
+        batch.observations,
+        batch.parameters,
+        batch.iterations,
+        batch.gate_rounds,
+        if batch.gate_settled { "" } else { " (the gate did not settle)" },
+        elapsed_s,
+        batch.measured_sigma_px,
+        norm(u.part_position_m) * 1000.0,
+        norm(u.base_translation_m) * 1000.0,
+        u.camera_height_m * 1000.0,
+        u.base_yaw_rad.to_degrees()
+    );
+    eprintln!("{}", summary("calibrator (refined) estimate", start));
+    if let Some(truth) = truth {
+        eprintln!(
+            "{}",
+            error_lines("batch", &compare(&batch.result, &truth.result)?)
+        );
+        eprintln!(
+            "{}",
+            error_lines("calibrator", &compare(start, &truth.result)?)
+        );
+    }
+    Ok(())
+}
+
+fn batch_context(log: &Path) -> String {
+    format!("batch solve of log {}", log.display())
+}
+
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let config = CalibrationConfig {
         disc_height_in_base_m: args.disc_height_in_base_m,
@@ -76,6 +160,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         ..CalibrationConfig::default()
     };
     let truth = args.truth.as_deref().map(read_truth_file).transpose()?;
+    if args.batch {
+        return run_batch(args, config, truth.as_ref());
+    }
     let reader = open_log(&args.log)?;
     let header = *reader.header();
     let calibration = calibrate_frames(&header, reader.numbered(), config)
@@ -93,26 +180,22 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let result = printed
         .as_ref()
         .map_err(|e| anyhow!("calibration of {} failed: {e}", args.log.display()))?;
-    let mut stdout = std::io::stdout().lock();
-    let printed_result = PrintedResult {
+    print_result(
         result,
-        uncertainty_1sigma: if args.paper {
+        if args.paper {
             None
         } else {
             calibration.refined_uncertainty
         },
-    };
-    serde_json::to_writer_pretty(&mut stdout, &printed_result).context("writing the result")?;
-    writeln!(stdout).context("writing the result")?;
+    )?;
 
     eprintln!("{}", summary(printed_label, result));
     if let (Some(u), false) = (&calibration.refined_uncertainty, args.paper) {
-        let norm = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt() * 1000.0;
         eprintln!(
             "refined 1-sigma: camera height {:.3} mm, part position {:.3} mm, base translation {:.3} mm, base yaw {:.4} deg",
             u.camera_height_m * 1000.0,
-            norm(u.part_position_m),
-            norm(u.base_translation_m),
+            norm(u.part_position_m) * 1000.0,
+            norm(u.base_translation_m) * 1000.0,
             u.base_yaw_rad.to_degrees()
         );
     }

@@ -21,6 +21,11 @@ pub struct Args {
     /// reproduces the `paper/effector-N` trials of `accuracy`.
     #[arg(long)]
     pub effector_frames: Option<usize>,
+    /// Record this many frames over the scenario's conveyor travel instead of its
+    /// own count (the paper scenario: 300 a revolution at 30 Hz; 1800 make a 60 s
+    /// log); reproduces the `paper/frames-N` trials of `accuracy`.
+    #[arg(long)]
+    pub frames: Option<usize>,
     /// Where to write the log (JSON Lines); the truth goes to the same name with `.truth.json`.
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
@@ -31,6 +36,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         .with_context(|| format!("choose one of {}", SCENARIO_NAMES.join(", ")))?;
     let scenario = match args.effector_frames {
         Some(count) => scenario.with_effector_frames(count),
+        None => scenario,
+    };
+    let scenario = match args.frames {
+        Some(0) => anyhow::bail!("--frames must be at least 1"),
+        Some(count) => scenario.with_frames(count),
         None => scenario,
     };
     let run = simulate(&scenario, args.seed)?;

@@ -199,6 +199,18 @@ impl Scenario {
         })
     }
 
+    /// The same scenario with `count` camera frames over the same conveyor travel
+    /// at the same frame rate (a longer log: 1800 frames at 30 Hz are 60 s). Beyond
+    /// the host calibrator's 1024 stored frames the calibrator thins, the batch
+    /// solve of [`crate::batch_ml`] does not.
+    pub fn with_frames(self, count: usize) -> Self {
+        Self {
+            name: format!("{}/frames-{count}", self.name),
+            frames: count,
+            ..self
+        }
+    }
+
     /// The same scenario with the end effector seen in exactly `count` frames.
     pub fn with_effector_frames(self, count: usize) -> Self {
         Self {
