@@ -5,7 +5,7 @@
 
 use anyhow::anyhow;
 use shared::calibration::{
-    CalibrationConfig, CalibrationError, EstimateUncertainty, HostCalibrator,
+    CalibrationConfig, CalibrationError, EstimateUncertainty, HostCalibrator, SelfCalibrator,
 };
 use shared::observation::{CalibrationResult, LogHeader, ObservationFrame};
 
@@ -55,6 +55,39 @@ pub struct Calibration {
     pub paper: Result<CalibrationResult, CalibrationError>,
 }
 
+/// When a host tool adopts an estimate so that a long log's frames are folded,
+/// not thinned (see `shared::calibration::folded`): once the stores are full,
+/// then each time the frames offered have doubled since (each adoption
+/// linearises what is folded after it nearer the optimum). An estimate that
+/// fails (too little data yet) is tried again 64 frames later.
+#[derive(Debug, Default)]
+pub struct Adoption {
+    next_at_frame: u32,
+}
+
+impl Adoption {
+    /// Estimates and adopts before the next push when it is time.
+    pub fn before_push<const F: usize, const E: usize, const P: usize>(
+        &mut self,
+        calibrator: &mut SelfCalibrator<F, E, P>,
+    ) {
+        let offered = calibrator.frames_offered();
+        let due = if calibrator.folded().is_none() {
+            calibrator.stores_full() && offered >= self.next_at_frame
+        } else {
+            offered >= self.next_at_frame
+        };
+        if !due {
+            return;
+        }
+        self.next_at_frame = if calibrator.estimate().is_ok() && calibrator.adopt_last_estimate() {
+            offered.saturating_mul(2)
+        } else {
+            offered.saturating_add(64)
+        };
+    }
+}
+
 /// Pushes every `(line, frame)` into a host-sized calibrator, then estimates. A
 /// frame the reader or the calibrator refuses stops the run with an error naming its line.
 pub fn calibrate_frames<I>(
@@ -71,8 +104,10 @@ where
         HostCalibrator::new(header, config)
             .map_err(|e| anyhow!("line 1: the calibration refuses the header: {e}"))?,
     );
+    let mut adoption = Adoption::default();
     for numbered in frames {
         let (line, frame) = numbered?;
+        adoption.before_push(&mut calibrator);
         calibrator
             .push(&frame)
             .map_err(|e| anyhow!("line {line}: the calibration refuses the frame: {e}"))?;

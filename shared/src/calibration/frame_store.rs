@@ -59,6 +59,11 @@ impl<const N: usize, const P: usize> FrameStore<N, P> {
         (N.saturating_mul(P) / self.pixels_per_frame).min(N)
     }
 
+    /// Whether a frame can be appended without thinning.
+    pub fn has_room(&self) -> bool {
+        self.len() < self.capacity()
+    }
+
     /// Frames stored.
     pub fn len(&self) -> usize {
         self.thetas.len()

@@ -167,6 +167,13 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
         true
     }
 
+    /// Whether the next frame or sighting may find its store full: from then on
+    /// what does not fit is thinned away unless an estimate has been adopted (a
+    /// host tool estimates and adopts here; the pick adopts its own estimates).
+    pub fn stores_full(&self) -> bool {
+        !self.frames.has_room() || self.effectors.items().len() >= EFFECTOR_FRAMES
+    }
+
     /// How many times folded information disagreed with the estimate and was
     /// discarded (see [`FoldedInformation::consistent_with`]).
     pub fn folds_discarded(&self) -> u32 {
