@@ -116,7 +116,7 @@ pub(crate) fn calibration_csv(calibrations: &[CalibrationRecord]) -> String {
         let [px, py, pz] = report.part_rotating_m.map(f64::from);
         let sigma_base = Some(f64::from(report.sigma_base_m));
         let sigma_part = Some(f64::from(report.sigma_part_m));
-        let rows: [(&str, f64, Option<f64>, Option<f64>); 13] = [
+        let rows: [(&str, f64, Option<f64>, Option<f64>); 16] = [
             (
                 "camera_height_m",
                 f64::from(report.camera_height_m),
@@ -157,6 +157,14 @@ pub(crate) fn calibration_csv(calibrations: &[CalibrationRecord]) -> String {
             (
                 "rms_reprojection_px",
                 f64::from(report.rms_reprojection_px),
+                None,
+                None,
+            ),
+            ("points_gated", f64::from(report.points_gated), None, None),
+            ("frames_folded", f64::from(report.frames_folded), None, None),
+            (
+                "folds_discarded",
+                f64::from(report.folds_discarded),
                 None,
                 None,
             ),

@@ -35,6 +35,9 @@ pub const MAX_FOLDED_RMS_IN_SIGMAS: f64 = 1.5;
 /// point is suspect (gross detection outliers are far rarer).
 pub const MAX_FOLDED_OUTLIER_FRACTION: f64 = 0.05;
 
+/// Points over which the recent residual is averaged (about 40 frames).
+pub const RECENT_POINTS: u32 = 200;
+
 /// How folded observations are weighted: the last estimate's robust loss.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FoldLoss {
@@ -74,6 +77,10 @@ pub struct FoldedInformation {
     squares: f64,
     /// Image points beyond the gate.
     outliers: u32,
+    /// Exponential mean of the latest folded points' squared residual norms
+    /// (px^2) where they were folded, over about [`RECENT_POINTS`]: what a
+    /// camera that creeps away from the adopted estimate shows first.
+    recent_mean_square: f64,
     /// Frames and sightings folded.
     frames: u32,
     sightings: u32,
@@ -91,6 +98,7 @@ impl FoldedInformation {
             points: 0,
             squares: 0.0,
             outliers: 0,
+            recent_mean_square: 0.0,
             frames: 0,
             sightings: 0,
         }
@@ -136,6 +144,11 @@ impl FoldedInformation {
         };
         let squared = residual.norm_squared();
         let weight = self.loss.weight(libm::sqrt(squared));
+        // Gated points count at the gate: a creep that pushes points past it
+        // must not hide from the mean.
+        let counted = squared.min(self.loss.gate_px * self.loss.gate_px);
+        let recent = f64::from(self.points.saturating_add(self.outliers).min(RECENT_POINTS)) + 1.0;
+        self.recent_mean_square += (counted - self.recent_mean_square) / recent;
         if weight == 0.0 {
             self.outliers = self.outliers.saturating_add(1);
             return;
@@ -179,11 +192,13 @@ impl FoldedInformation {
 
     /// Whether the folded observations agree with `model`, an optimum that includes
     /// them, measured with a pixel noise of `pixel_sigma_px` per axis: their RMS
-    /// residual within [`MAX_FOLDED_RMS_IN_SIGMAS`] of the noise's and at most
+    /// residual within [`MAX_FOLDED_RMS_IN_SIGMAS`] of the noise's, the latest
+    /// [`RECENT_POINTS`] too where they were folded, and at most
     /// [`MAX_FOLDED_OUTLIER_FRACTION`] of them gated. They do not when they were
     /// linearised at a wrong estimate (a wrong start adopted, then moved away from):
     /// the quadratic then pulls towards where it was taken, and the estimate must be
-    /// made without it.
+    /// made without it. Nor when the camera creeps: the latest points drift away
+    /// from every adopted estimate, while the whole run's fit averages the creep.
     pub fn consistent_with(&self, model: &WorkcellModel, pixel_sigma_px: f64) -> bool {
         let seen = f64::from(self.points) + f64::from(self.outliers);
         if self.points == 0 {
@@ -192,7 +207,11 @@ impl FoldedInformation {
         let mean_square = 2.0 * self.cost(model) / f64::from(self.points);
         let expected = 2.0 * pixel_sigma_px * pixel_sigma_px;
         let bound = MAX_FOLDED_RMS_IN_SIGMAS * MAX_FOLDED_RMS_IN_SIGMAS * expected;
-        mean_square <= bound && f64::from(self.outliers) <= MAX_FOLDED_OUTLIER_FRACTION * seen
+        let recent_ok = self.points.saturating_add(self.outliers) < RECENT_POINTS
+            || self.recent_mean_square <= bound;
+        mean_square <= bound
+            && recent_ok
+            && f64::from(self.outliers) <= MAX_FOLDED_OUTLIER_FRACTION * seen
     }
 
     /// Image points folded and kept.

@@ -229,4 +229,12 @@ pub struct CalibrationReport {
     pub effector_frames_used: u16,
     /// Root mean square reprojection error of the fit, pixels.
     pub rms_reprojection_px: f32,
+    /// Image points the fit gated as outliers (stored and folded). v6.
+    pub points_gated: u32,
+    /// Frames folded into the calibrator's normal equations (those its store
+    /// had no room for since it adopted an estimate). v6.
+    pub frames_folded: u32,
+    /// Times folded frames disagreed with a later optimum (a wrong estimate
+    /// adopted, a camera that creeps) and were discarded. v6.
+    pub folds_discarded: u16,
 }

@@ -199,6 +199,37 @@ impl Workcell {
 
     /// Records a run: `scenario.frames` frames with theta growing over `rotation_rad`.
     pub fn record(&self, rng: &mut Rng, scenario: &Scenario) -> Vec<ObservationFrame> {
+        // Effector sightings spread over the run.
+        let mut effector_frames = Vec::new();
+        while effector_frames.len() < scenario.effector_frames.min(scenario.frames) {
+            let k = (rng.unit() * scenario.frames as f64) as usize;
+            if !effector_frames.contains(&k) {
+                effector_frames.push(k);
+            }
+        }
+        let mut frames = Vec::new();
+        for k in 0..scenario.frames {
+            let theta = scenario.rotation_rad * k as f64 / scenario.frames as f64;
+            let mut frame = self.frame_at(rng, scenario, theta, effector_frames.contains(&k));
+            frame.t_s = k as f64 * 0.1;
+            frames.push(frame);
+        }
+        frames
+    }
+
+    /// One frame at conveyor angle `theta` (t_s 0), with a sighting when
+    /// `scenario.effector_frames` is not zero.
+    pub fn record_at(&self, rng: &mut Rng, scenario: &Scenario, theta: f64) -> ObservationFrame {
+        self.frame_at(rng, scenario, theta, scenario.effector_frames > 0)
+    }
+
+    fn frame_at(
+        &self,
+        rng: &mut Rng,
+        scenario: &Scenario,
+        theta: f64,
+        with_effector: bool,
+    ) -> ObservationFrame {
         let detect = |rng: &mut Rng, pixel: Option<Vector2<f64>>| -> Option<PixelPoint> {
             let pixel = pixel?;
             if rng.chance(scenario.dropout) {
@@ -213,17 +244,7 @@ impl Workcell {
             ];
             self.intrinsics.contains(noisy).then_some(noisy)
         };
-        // Effector sightings spread over the run.
-        let mut effector_frames = Vec::new();
-        while effector_frames.len() < scenario.effector_frames.min(scenario.frames) {
-            let k = (rng.unit() * scenario.frames as f64) as usize;
-            if !effector_frames.contains(&k) {
-                effector_frames.push(k);
-            }
-        }
-        let mut frames = Vec::new();
-        for k in 0..scenario.frames {
-            let theta = scenario.rotation_rad * k as f64 / scenario.frames as f64;
+        {
             let (s, c) = theta.sin_cos();
             let center_px = detect(rng, self.project(&Vector3::zeros()));
             let reference_px = detect(
@@ -247,21 +268,20 @@ impl Workcell {
                 }
             }
             let part_px = (all_seen && part.len() == self.features_rotating.len()).then_some(part);
-            let effector = if effector_frames.contains(&k) {
+            let effector = if with_effector {
                 self.effector_sighting(rng, scenario)
             } else {
                 None
             };
-            frames.push(ObservationFrame {
-                t_s: k as f64 * 0.1,
+            ObservationFrame {
+                t_s: 0.0,
                 conveyor_angle_rad: theta,
                 center_px,
                 reference_px,
                 part_px,
                 effector,
-            });
+            }
         }
-        frames
     }
 
     /// Two points 0.1 m apart, 0.05-0.5 m above the disc, in view.

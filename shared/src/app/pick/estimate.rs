@@ -72,6 +72,9 @@ impl CellEstimate {
             effector_frames_used: u16::try_from(result.quality.effector_frames_used)
                 .unwrap_or(u16::MAX),
             rms_reprojection_px: result.quality.rms_reprojection_px as f32,
+            points_gated: result.quality.outliers_rejected,
+            frames_folded: 0,
+            folds_discarded: 0,
         };
         Self {
             base_yaw: result.base_from_disc.yaw_rad as f32,

@@ -133,7 +133,11 @@ impl PickWorker {
                 } => FaultCause::EffectorNotSeen,
                 _ => FaultCause::CalibrationFailed,
             })?;
-        let estimate = CellEstimate::new(&result, &sigma, time_us);
+        let mut estimate = CellEstimate::new(&result, &sigma, time_us);
+        estimate.report.frames_folded =
+            self.calibrator.folded().map_or(0, |folded| folded.frames());
+        estimate.report.folds_discarded =
+            u16::try_from(self.calibrator.folds_discarded()).unwrap_or(u16::MAX);
         let report = &estimate.report;
         let trusted = report.sigma_part_m.is_finite()
             && report.sigma_base_m.is_finite()
