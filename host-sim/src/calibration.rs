@@ -1,11 +1,14 @@
 //! Self-calibration of an observation log on the host: every frame streamed
 //! into `shared::calibration`'s host-sized calibrator, the refined estimate with
 //! its one-sigma uncertainties beside the paper's own two-frame estimate, and
-//! the warning for a part whose height is poorly observable.
+//! the warning for a part whose height is poorly observable. The log may also
+//! be replayed through the pick's own calibrator ([`CalibratorChoice::Pick`]),
+//! the very estimator the controller runs (`shared::app::pick::PickCalibrator`).
 
 use anyhow::anyhow;
+use shared::app::pick::PickCalibrator;
 use shared::calibration::{
-    CalibrationConfig, CalibrationError, EstimateUncertainty, HostCalibrator,
+    CalibrationConfig, CalibrationError, EstimateUncertainty, HostCalibrator, SelfCalibrator,
 };
 use shared::observation::{CalibrationResult, LogHeader, ObservationFrame};
 
@@ -55,6 +58,20 @@ pub struct Calibration {
     pub paper: Result<CalibrationResult, CalibrationError>,
 }
 
+/// The calibrator a log is streamed into.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum CalibratorChoice {
+    /// The host's (`HostCalibrator`: 1024 frames, 256 sightings of the
+    /// marks): every frame of a pick's log is kept. A frame it refuses stops
+    /// the run with an error naming its line.
+    #[default]
+    Host,
+    /// The controller's own (`PickCalibrator`: 256 frames, 128 sightings, 5
+    /// pixels a frame, thinned as on the firmware). A frame it refuses is
+    /// passed over, as the controller's worker passes it over.
+    Pick,
+}
+
 /// Pushes every `(line, frame)` into a host-sized calibrator, then estimates. A
 /// frame the reader or the calibrator refuses stops the run with an error naming its line.
 pub fn calibrate_frames<I>(
@@ -65,17 +82,65 @@ pub fn calibrate_frames<I>(
 where
     I: IntoIterator<Item = Result<(usize, ObservationFrame), LogError>>,
 {
-    // About 117 kB (see `SelfCalibrator`): boxed so worker threads keep small stacks.
-    // `shared`'s CalibrationError is not a `std::error::Error` yet: formatted here.
-    let mut calibrator = Box::new(
-        HostCalibrator::new(header, config)
-            .map_err(|e| anyhow!("line 1: the calibration refuses the header: {e}"))?,
-    );
+    calibrate_frames_with(CalibratorChoice::Host, header, frames, config)
+}
+
+/// [`calibrate_frames`] with the calibrator `choice`.
+pub fn calibrate_frames_with<I>(
+    choice: CalibratorChoice,
+    header: &LogHeader,
+    frames: I,
+    config: CalibrationConfig,
+) -> anyhow::Result<Calibration>
+where
+    I: IntoIterator<Item = Result<(usize, ObservationFrame), LogError>>,
+{
+    // About 117 kB and 18 kB (see `SelfCalibrator`): boxed so worker threads
+    // keep small stacks.
+    match choice {
+        CalibratorChoice::Host => {
+            let mut calibrator: Box<HostCalibrator> = new_boxed(header, config)?;
+            replay(&mut calibrator, frames, false)
+        }
+        CalibratorChoice::Pick => {
+            let mut calibrator: Box<PickCalibrator> = new_boxed(header, config)?;
+            replay(&mut calibrator, frames, true)
+        }
+    }
+}
+
+/// A boxed calibrator for `header` and `config`, its refusal of the header
+/// formatted (`shared`'s CalibrationError is not a `std::error::Error` yet).
+fn new_boxed<const F: usize, const E: usize, const P: usize>(
+    header: &LogHeader,
+    config: CalibrationConfig,
+) -> anyhow::Result<Box<SelfCalibrator<F, E, P>>> {
+    SelfCalibrator::new(header, config)
+        .map(Box::new)
+        .map_err(|e| anyhow!("line 1: the calibration refuses the header: {e}"))
+}
+
+/// Pushes the frames into `calibrator` (passing over the refused ones when
+/// `skip_refused`, else stopping at the first), then estimates.
+fn replay<const F: usize, const E: usize, const P: usize, I>(
+    calibrator: &mut SelfCalibrator<F, E, P>,
+    frames: I,
+    skip_refused: bool,
+) -> anyhow::Result<Calibration>
+where
+    I: IntoIterator<Item = Result<(usize, ObservationFrame), LogError>>,
+{
     for numbered in frames {
         let (line, frame) = numbered?;
-        calibrator
-            .push(&frame)
-            .map_err(|e| anyhow!("line {line}: the calibration refuses the frame: {e}"))?;
+        match calibrator.push(&frame) {
+            Ok(()) => {}
+            Err(_) if skip_refused => {}
+            Err(e) => {
+                return Err(anyhow!(
+                    "line {line}: the calibration refuses the frame: {e}"
+                ))
+            }
+        }
     }
     let (refined, refined_uncertainty) = match calibrator.estimate_with_uncertainty() {
         Ok((result, uncertainty)) => (Ok(result), Some(uncertainty)),
@@ -92,13 +157,24 @@ pub fn calibrate_log(
     log: &ObservationLog,
     config: CalibrationConfig,
 ) -> anyhow::Result<Calibration> {
+    calibrate_log_with(CalibratorChoice::Host, log, log.frames.len(), config)
+}
+
+/// The log's first `frames` frames through the calibrator `choice`.
+pub fn calibrate_log_with(
+    choice: CalibratorChoice,
+    log: &ObservationLog,
+    frames: usize,
+    config: CalibrationConfig,
+) -> anyhow::Result<Calibration> {
     // In memory there are no blank lines: frame i is on line i + 2 of its file.
     let numbered = log
         .frames
         .iter()
+        .take(frames)
         .enumerate()
         .map(|(index, frame)| Ok((index + 2, frame.clone())));
-    calibrate_frames(&log.header, numbered, config)
+    calibrate_frames_with(choice, &log.header, numbered, config)
 }
 
 #[cfg(test)]

@@ -1,6 +1,9 @@
 //! `host-sim calibrate LOG.jsonl`: stream a log into the self-calibration
 //! (`shared::calibration`), print the contract's calibration-result JSON on
 //! stdout and a short human summary (and, with `--truth`, the errors) on stderr.
+//! `--calibrator pick --frames N` replays a pick's own log through the
+//! controller's calibrator as the controller's final estimate saw it (see
+//! `crate::pick::own_log`).
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -11,18 +14,29 @@ use shared::calibration::{CalibrationConfig, EstimateUncertainty};
 use shared::observation::CalibrationResult;
 
 use crate::accuracy::metrics::{compare, ErrorMetrics, METRIC_COLUMNS};
-use crate::calibration::{calibrate_frames, part_height_warning};
+use crate::calibration::{calibrate_frames_with, part_height_warning, CalibratorChoice};
 use crate::log::open_log;
-use crate::recording::read_truth_file;
+use crate::recording::read_truth_result;
 
 /// Calibrate camera, part and robot base from an observation log.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The observation log (JSON Lines, contract version 1).
     pub log: PathBuf,
-    /// A ground-truth file (from `record`): also print the errors of the estimate.
+    /// A ground-truth file (from `record`, or a pick's own log's truth or
+    /// `controller_estimate.json`): also print the errors of the estimate
+    /// against it.
     #[arg(long)]
     pub truth: Option<PathBuf>,
+    /// The calibrator: the host's (1024 frames, 256 sightings) or the pick
+    /// controller's own (256 frames, 128 sightings, thinned as on the
+    /// firmware; frames it refuses are passed over, as the controller does).
+    #[arg(long, value_enum, default_value_t = CalibratorChoice::Host)]
+    pub calibrator: CalibratorChoice,
+    /// Use only the log's first N frames (a pick's own log goes on past its
+    /// final estimate: `controller.log_frames` of its controller_estimate.json).
+    #[arg(long)]
+    pub frames: Option<usize>,
     /// Print the paper's own two-frame estimate instead of the refined one.
     #[arg(long)]
     pub paper: bool,
@@ -75,10 +89,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         pixel_sigma: args.pixel_sigma,
         ..CalibrationConfig::default()
     };
-    let truth = args.truth.as_deref().map(read_truth_file).transpose()?;
+    let truth = args.truth.as_deref().map(read_truth_result).transpose()?;
     let reader = open_log(&args.log)?;
     let header = *reader.header();
-    let calibration = calibrate_frames(&header, reader.numbered(), config)
+    let frames = reader.numbered().take(args.frames.unwrap_or(usize::MAX));
+    let calibration = calibrate_frames_with(args.calibrator, &header, frames, config)
         .with_context(|| format!("in log {}", args.log.display()))?;
 
     let (printed, printed_label) = if args.paper {
@@ -130,7 +145,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         match (other, &truth) {
             (Err(e), _) => eprintln!("{label} estimate failed: {e}"),
             (Ok(estimate), Some(truth)) => {
-                eprintln!("{}", error_lines(label, &compare(estimate, &truth.result)?));
+                eprintln!("{}", error_lines(label, &compare(estimate, truth)?));
             }
             (Ok(_), None) => {}
         }
