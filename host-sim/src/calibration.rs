@@ -1,9 +1,12 @@
 //! Self-calibration of an observation log on the host: every frame streamed
 //! into `shared::calibration`'s host-sized calibrator, the refined estimate with
 //! its one-sigma uncertainties beside the paper's own two-frame estimate, and
-//! the warning for a part whose height is poorly observable.
+//! the warning for a part whose height is poorly observable. The log may also
+//! be replayed through the pick's own calibrator ([`CalibratorChoice::Pick`]),
+//! the very estimator the controller runs (`shared::app::pick::PickCalibrator`).
 
 use anyhow::anyhow;
+use shared::app::pick::PickCalibrator;
 use shared::calibration::{
     CalibrationConfig, CalibrationError, EstimateUncertainty, HostCalibrator, SelfCalibrator,
 };
@@ -56,13 +59,27 @@ pub struct Calibration {
 }
 
 /// When a host tool adopts an estimate so that a long log's frames are folded,
-/// not thinned (see `shared::calibration::folded`): once the stores are full,
-/// then each time the frames offered have doubled since (each adoption
-/// linearises what is folded after it nearer the optimum). An estimate that
-/// fails (too little data yet) is tried again 64 frames later.
-#[derive(Debug, Default)]
-pub struct Adoption {
-    next_at_frame: u32,
+/// not thinned (see `shared::calibration::folded`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Adoption {
+    /// The host's own rule: once the stores are full, then each time the frames
+    /// offered have doubled since (each adoption linearises what is folded after
+    /// it nearer the optimum). An estimate that fails (too little data yet) is
+    /// tried again 64 frames later.
+    Auto {
+        /// Frames offered before which nothing is due.
+        next_at_frame: u32,
+    },
+    /// Where the controller adopted its estimates: after these many frames
+    /// offered (a pick's own log: `controller.adopted_after_frames`), so that a
+    /// replay folds exactly what the controller folded.
+    AfterFrames(Vec<u32>),
+}
+
+impl Default for Adoption {
+    fn default() -> Self {
+        Self::Auto { next_at_frame: 0 }
+    }
 }
 
 impl Adoption {
@@ -72,20 +89,41 @@ impl Adoption {
         calibrator: &mut SelfCalibrator<F, E, P>,
     ) {
         let offered = calibrator.frames_offered();
-        let due = if calibrator.folded().is_none() {
-            calibrator.stores_full() && offered >= self.next_at_frame
-        } else {
-            offered >= self.next_at_frame
-        };
-        if !due {
-            return;
+        match self {
+            Self::Auto { next_at_frame } => {
+                let due = offered >= *next_at_frame
+                    && (calibrator.folded().is_some() || calibrator.stores_full());
+                if !due {
+                    return;
+                }
+                *next_at_frame =
+                    if calibrator.estimate().is_ok() && calibrator.adopt_last_estimate() {
+                        offered.saturating_mul(2)
+                    } else {
+                        offered.saturating_add(64)
+                    };
+            }
+            Self::AfterFrames(points) => {
+                if points.contains(&offered) && calibrator.estimate().is_ok() {
+                    calibrator.adopt_last_estimate();
+                }
+            }
         }
-        self.next_at_frame = if calibrator.estimate().is_ok() && calibrator.adopt_last_estimate() {
-            offered.saturating_mul(2)
-        } else {
-            offered.saturating_add(64)
-        };
     }
+}
+
+/// The calibrator a log is streamed into.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum CalibratorChoice {
+    /// The host's (`HostCalibrator`: 1024 frames, 256 sightings of the
+    /// marks; what does not fit is folded). A frame it refuses stops the run
+    /// with an error naming its line.
+    #[default]
+    Host,
+    /// The controller's own (`PickCalibrator`: 256 frames, 128 sightings, 5
+    /// pixels a frame, as on the firmware). A frame it refuses is passed
+    /// over, as the controller's worker passes it over.
+    Pick,
 }
 
 /// Pushes every `(line, frame)` into a host-sized calibrator, then estimates. A
@@ -98,19 +136,75 @@ pub fn calibrate_frames<I>(
 where
     I: IntoIterator<Item = Result<(usize, ObservationFrame), LogError>>,
 {
-    // About 117 kB (see `SelfCalibrator`): boxed so worker threads keep small stacks.
-    // `shared`'s CalibrationError is not a `std::error::Error` yet: formatted here.
-    let mut calibrator = Box::new(
-        HostCalibrator::new(header, config)
-            .map_err(|e| anyhow!("line 1: the calibration refuses the header: {e}"))?,
-    );
-    let mut adoption = Adoption::default();
+    calibrate_frames_with(
+        CalibratorChoice::Host,
+        Adoption::default(),
+        header,
+        frames,
+        config,
+    )
+}
+
+/// [`calibrate_frames`] with the calibrator `choice`, adopting its estimates
+/// as `adoption` says.
+pub fn calibrate_frames_with<I>(
+    choice: CalibratorChoice,
+    adoption: Adoption,
+    header: &LogHeader,
+    frames: I,
+    config: CalibrationConfig,
+) -> anyhow::Result<Calibration>
+where
+    I: IntoIterator<Item = Result<(usize, ObservationFrame), LogError>>,
+{
+    // About 117 kB and 23 kB (see `SelfCalibrator`): boxed so worker threads
+    // keep small stacks.
+    match choice {
+        CalibratorChoice::Host => {
+            let mut calibrator: Box<HostCalibrator> = new_boxed(header, config)?;
+            replay(&mut calibrator, adoption, frames, false)
+        }
+        CalibratorChoice::Pick => {
+            let mut calibrator: Box<PickCalibrator> = new_boxed(header, config)?;
+            replay(&mut calibrator, adoption, frames, true)
+        }
+    }
+}
+
+/// A boxed calibrator for `header` and `config`, its refusal of the header
+/// formatted (`shared`'s CalibrationError is not a `std::error::Error` yet).
+fn new_boxed<const F: usize, const E: usize, const P: usize>(
+    header: &LogHeader,
+    config: CalibrationConfig,
+) -> anyhow::Result<Box<SelfCalibrator<F, E, P>>> {
+    SelfCalibrator::new(header, config)
+        .map(Box::new)
+        .map_err(|e| anyhow!("line 1: the calibration refuses the header: {e}"))
+}
+
+/// Pushes the frames into `calibrator` (passing over the refused ones when
+/// `skip_refused`, else stopping at the first), then estimates.
+fn replay<const F: usize, const E: usize, const P: usize, I>(
+    calibrator: &mut SelfCalibrator<F, E, P>,
+    mut adoption: Adoption,
+    frames: I,
+    skip_refused: bool,
+) -> anyhow::Result<Calibration>
+where
+    I: IntoIterator<Item = Result<(usize, ObservationFrame), LogError>>,
+{
     for numbered in frames {
         let (line, frame) = numbered?;
-        adoption.before_push(&mut calibrator);
-        calibrator
-            .push(&frame)
-            .map_err(|e| anyhow!("line {line}: the calibration refuses the frame: {e}"))?;
+        adoption.before_push(calibrator);
+        match calibrator.push(&frame) {
+            Ok(()) => {}
+            Err(_) if skip_refused => {}
+            Err(e) => {
+                return Err(anyhow!(
+                    "line {line}: the calibration refuses the frame: {e}"
+                ))
+            }
+        }
     }
     let (refined, refined_uncertainty) = match calibrator.estimate_with_uncertainty() {
         Ok((result, uncertainty)) => (Ok(result), Some(uncertainty)),
@@ -127,13 +221,32 @@ pub fn calibrate_log(
     log: &ObservationLog,
     config: CalibrationConfig,
 ) -> anyhow::Result<Calibration> {
+    calibrate_log_with(
+        CalibratorChoice::Host,
+        Adoption::default(),
+        log,
+        log.frames.len(),
+        config,
+    )
+}
+
+/// The log's first `frames` frames through the calibrator `choice`, adopting
+/// its estimates as `adoption` says.
+pub fn calibrate_log_with(
+    choice: CalibratorChoice,
+    adoption: Adoption,
+    log: &ObservationLog,
+    frames: usize,
+    config: CalibrationConfig,
+) -> anyhow::Result<Calibration> {
     // In memory there are no blank lines: frame i is on line i + 2 of its file.
     let numbered = log
         .frames
         .iter()
+        .take(frames)
         .enumerate()
         .map(|(index, frame)| Ok((index + 2, frame.clone())));
-    calibrate_frames(&log.header, numbered, config)
+    calibrate_frames_with(choice, adoption, &log.header, numbered, config)
 }
 
 #[cfg(test)]

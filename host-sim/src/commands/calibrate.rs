@@ -4,6 +4,9 @@
 //! With `--batch`, the whole log is held and the full batch maximum-likelihood
 //! solve ([`crate::batch_ml`]) runs from the calibrator's estimate: its result
 //! is printed instead, the calibrator's beside it on stderr.
+//! `--calibrator pick --frames N` replays a pick's own log through the
+//! controller's calibrator as the controller's final estimate saw it (see
+//! `crate::pick::own_log`).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -17,18 +20,37 @@ use shared::observation::CalibrationResult;
 use crate::accuracy::metrics::{compare, ErrorMetrics, METRIC_COLUMNS};
 use crate::batch_ml::batch_estimate;
 use crate::batch_ml::covariance::norm;
-use crate::calibration::{calibrate_frames, calibrate_log, part_height_warning};
+use crate::calibration::{
+    calibrate_frames_with, calibrate_log, part_height_warning, Adoption, CalibratorChoice,
+};
 use crate::log::{open_log, read_log_file};
-use crate::recording::{read_truth_file, TruthFile};
+use crate::recording::read_truth_result;
 
 /// Calibrate camera, part and robot base from an observation log.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The observation log (JSON Lines, contract version 1).
     pub log: PathBuf,
-    /// A ground-truth file (from `record`): also print the errors of the estimate.
+    /// A ground-truth file (from `record`, or a pick's own log's truth or
+    /// `controller_estimate.json`): also print the errors of the estimate
+    /// against it.
     #[arg(long)]
     pub truth: Option<PathBuf>,
+    /// The calibrator: the host's (1024 frames, 256 sightings) or the pick
+    /// controller's own (256 frames, 128 sightings, thinned as on the
+    /// firmware; frames it refuses are passed over, as the controller does).
+    #[arg(long, value_enum, default_value_t = CalibratorChoice::Host)]
+    pub calibrator: CalibratorChoice,
+    /// Adopt the calibrator's estimate after these many frames (comma-separated)
+    /// instead of by the host's rule (when its stores fill, then each time the
+    /// frames double): a pick's own log's `controller.adopted_after_frames`,
+    /// so that the replay folds what the controller folded.
+    #[arg(long, value_delimiter = ',')]
+    pub adopt_after_frames: Option<Vec<u32>>,
+    /// Use only the log's first N frames (a pick's own log goes on past its
+    /// final estimate: `controller.log_frames` of its controller_estimate.json).
+    #[arg(long)]
+    pub frames: Option<usize>,
     /// Print the paper's own two-frame estimate instead of the refined one.
     #[arg(long, conflicts_with = "batch")]
     pub paper: bool,
@@ -96,7 +118,7 @@ fn print_result(
 fn run_batch(
     args: &Args,
     config: CalibrationConfig,
-    truth: Option<&TruthFile>,
+    truth: Option<&CalibrationResult>,
 ) -> anyhow::Result<()> {
     let log = read_log_file(&args.log)?;
     let calibration =
@@ -137,14 +159,8 @@ fn run_batch(
     );
     eprintln!("{}", summary("calibrator (refined) estimate", start));
     if let Some(truth) = truth {
-        eprintln!(
-            "{}",
-            error_lines("batch", &compare(&batch.result, &truth.result)?)
-        );
-        eprintln!(
-            "{}",
-            error_lines("calibrator", &compare(start, &truth.result)?)
-        );
+        eprintln!("{}", error_lines("batch", &compare(&batch.result, truth)?));
+        eprintln!("{}", error_lines("calibrator", &compare(start, truth)?));
     }
     Ok(())
 }
@@ -159,13 +175,18 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         pixel_sigma: args.pixel_sigma,
         ..CalibrationConfig::default()
     };
-    let truth = args.truth.as_deref().map(read_truth_file).transpose()?;
+    let truth = args.truth.as_deref().map(read_truth_result).transpose()?;
     if args.batch {
         return run_batch(args, config, truth.as_ref());
     }
     let reader = open_log(&args.log)?;
     let header = *reader.header();
-    let calibration = calibrate_frames(&header, reader.numbered(), config)
+    let frames = reader.numbered().take(args.frames.unwrap_or(usize::MAX));
+    let adoption = args
+        .adopt_after_frames
+        .clone()
+        .map_or_else(Adoption::default, Adoption::AfterFrames);
+    let calibration = calibrate_frames_with(args.calibrator, adoption, &header, frames, config)
         .with_context(|| format!("in log {}", args.log.display()))?;
 
     let (printed, printed_label) = if args.paper {
@@ -213,7 +234,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         match (other, &truth) {
             (Err(e), _) => eprintln!("{label} estimate failed: {e}"),
             (Ok(estimate), Some(truth)) => {
-                eprintln!("{}", error_lines(label, &compare(estimate, &truth.result)?));
+                eprintln!("{}", error_lines(label, &compare(estimate, truth)?));
             }
             (Ok(_), None) => {}
         }

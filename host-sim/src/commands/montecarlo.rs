@@ -6,9 +6,9 @@ use std::fmt::Write as _;
 use std::fs;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 
-use crate::pick::montecarlo::{montecarlo_table, run_trials, write_trials_csv};
+use crate::pick::montecarlo::{montecarlo_table, run_trials_logging, write_trials_csv, TrialLogs};
 
 /// Options of `host-sim montecarlo`.
 #[derive(clap::Args, Debug, Clone)]
@@ -31,13 +31,42 @@ pub struct Args {
     /// Folder for report.md, trials.csv and summary.json.
     #[arg(long, default_value = "montecarlo-out")]
     pub out: PathBuf,
+    /// Trials (comma-separated indices, e.g. 3,17) whose own observation log,
+    /// truth and controller estimate are written to --log-dir/trial-NNNN/.
+    #[arg(long, value_delimiter = ',')]
+    pub log_trials: Vec<usize>,
+    /// Folder of the logged trials (needed with --log-trials).
+    #[arg(long)]
+    pub log_dir: Option<PathBuf>,
 }
 
 pub fn run(args: &Args) -> Result<()> {
     let experiment = super::load_experiment(args.scenario.as_deref(), &args.experiment)?;
     let (pool, progress) = super::campaign_pool(args.threads, args.trials, "picks")?;
     let started = std::time::Instant::now();
-    let summaries = pool.install(|| run_trials(&experiment, args.trials, args.seed, &progress));
+    if let Some(trial) = args.log_trials.iter().find(|&&k| k >= args.trials) {
+        bail!(
+            "--log-trials {trial} is not one of the {} trials",
+            args.trials
+        );
+    }
+    let logs = match (&args.log_dir, args.log_trials.is_empty()) {
+        (Some(dir), false) => Some(TrialLogs {
+            dir: dir.clone(),
+            trials: args.log_trials.clone(),
+        }),
+        (None, false) => bail!("--log-trials needs --log-dir"),
+        (_, true) => None,
+    };
+    let summaries = pool.install(|| {
+        run_trials_logging(
+            &experiment,
+            args.trials,
+            args.seed,
+            &progress,
+            logs.as_ref(),
+        )
+    });
     progress.finish_and_clear();
     let elapsed = started.elapsed().as_secs_f64();
     let mut report = montecarlo_table(&experiment.name, &summaries);
@@ -55,5 +84,12 @@ pub fn run(args: &Args) -> Result<()> {
     fs::write(args.out.join("summary.json"), json).context("writing summary.json")?;
     println!("{report}");
     println!("(written to {})", args.out.display());
+    if let Some(logs) = &logs {
+        println!(
+            "(observation logs of trials {:?} in {})",
+            logs.trials,
+            logs.dir.display()
+        );
+    }
     Ok(())
 }

@@ -2,7 +2,7 @@
 //! pick, end to end, with the results table on the terminal and plots plus CSV
 //! in an output folder.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
@@ -12,6 +12,9 @@ use crate::link::{
     TcpLink,
 };
 use crate::pick::outputs::write_run_outputs;
+use crate::pick::own_log::{
+    in_process_board, run_pick_logged, write_pick_log, InProcessOptions, PickLogFiles,
+};
 use crate::pick::record::PickRun;
 use crate::pick::report::{link_line, results_table, summary_line};
 use crate::pick::runner::run_pick;
@@ -52,6 +55,11 @@ pub struct Args {
     /// Print the embedded default scenario file and exit.
     #[arg(long)]
     pub print_scenario: bool,
+    /// Write the pick's own observation log (what the controller's
+    /// calibrator was fed), its truth and the controller's final estimate to
+    /// DIR/<experiment>/ (in-process links only).
+    #[arg(long)]
+    pub log_dir: Option<PathBuf>,
 }
 
 fn parse_rate(text: &str) -> Result<f64, String> {
@@ -75,7 +83,55 @@ impl Default for Args {
             link_noise: 0.0,
             link_noise_seed: 1,
             print_scenario: false,
+            log_dir: None,
         }
+    }
+}
+
+/// The pick against the in-process controller, its own log written to
+/// `dir`/<experiment>.
+fn run_logged(
+    experiment: &PickExperiment,
+    seed: u64,
+    args: &Args,
+    dir: &Path,
+) -> Result<(PickRun, PickLogFiles)> {
+    let Some(board) = in_process_board(&args.link) else {
+        bail!(
+            "--log-dir needs an in-process controller (--link in-process or in-process:stm32f407), not {}",
+            args.link
+        );
+    };
+    let noise = (args.link_noise > 0.0).then_some(NoiseConfig {
+        byte_error_rate: args.link_noise,
+        seed: args.link_noise_seed,
+    });
+    let logged = run_pick_logged(experiment, seed, InProcessOptions { board, noise })?;
+    let files = write_pick_log(&dir.join(&experiment.name), &logged)?;
+    Ok((logged.run, files))
+}
+
+/// The terminal's line about a pick's own log.
+pub fn log_line(files: &PickLogFiles) -> String {
+    match &files.controller_estimate {
+        Some(estimate) => format!(
+            "observation log: {} ({} frames), truth {}, controller estimate {}{}",
+            files.observations.display(),
+            files.frames,
+            files.truth.display(),
+            estimate.display(),
+            match files.matches_controller {
+                Some(true) => "",
+                Some(false) => " (WARNING: differs from the controller's own)",
+                None => " (refused by the controller)",
+            }
+        ),
+        None => format!(
+            "observation log: {} ({} frames), truth {}; no final estimate to write",
+            files.observations.display(),
+            files.frames,
+            files.truth.display()
+        ),
     }
 }
 
@@ -162,8 +218,18 @@ pub fn run(args: &Args) -> Result<()> {
     let mut runs = Vec::new();
     for experiment in &experiments {
         let started = Instant::now();
-        let run = run_on_link(experiment, args.seed, args)
-            .with_context(|| format!("experiment {}", experiment.name))?;
+        let (run, log_files) = match &args.log_dir {
+            Some(dir) => {
+                let (run, files) = run_logged(experiment, args.seed, args, dir)
+                    .with_context(|| format!("experiment {}", experiment.name))?;
+                (run, Some(files))
+            }
+            None => (
+                run_on_link(experiment, args.seed, args)
+                    .with_context(|| format!("experiment {}", experiment.name))?,
+                None,
+            ),
+        };
         println!(
             "{}  [{:.1} s simulated in {:.1} s]",
             summary_line(&run),
@@ -172,6 +238,9 @@ pub fn run(args: &Args) -> Result<()> {
         );
         if let Some(line) = link_line(&run) {
             println!("  {line}");
+        }
+        if let Some(files) = &log_files {
+            println!("  {}", log_line(files));
         }
         if !args.no_plots {
             let written = write_run_outputs(&run, &args.out)

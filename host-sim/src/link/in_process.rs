@@ -10,15 +10,23 @@
 //! most), and each job's result comes when a 168 MHz Cortex-M4F would have
 //! finished it ([`super::board_timing`]), on the plant's clock: late, as on
 //! the STM32F407 running on its own ticker.
+//!
+//! With [`InProcessLink::recording_worker`] every item the worker takes is
+//! also shown to a [`WorkerTap`] (the pick's own observation log). Without a
+//! board's timing the items are then queued and run right after each message,
+//! as the unqueued application runs them (observations in the message,
+//! jobs after it): the run is the same, which the tests check.
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 use shared::app::pick::handoff::{VisionNews, WorkItem};
+use shared::app::power_on_homing::HomingStage;
 use shared::app::{ControllerApp, MAX_REPLIES};
-use shared::protocol::{encode_frame, FrameDecoder, Message, MAX_FRAME_LEN};
+use shared::protocol::{encode_frame, FrameDecoder, Message, MessageKind, MAX_FRAME_LEN};
 
 use super::board_timing::BoardTiming;
+use super::worker_tap::WorkerTap;
 use super::{ByteLink, LinkError};
 
 /// The control rate the in-process controller reports (the firmware's default;
@@ -34,6 +42,8 @@ pub struct InProcessLink {
     started: Instant,
     /// The board's worker, when its jobs take a board's time.
     board: Option<BoardWorker>,
+    /// What the worker is given, when asked to record it.
+    tap: Option<WorkerTap>,
 }
 
 /// A board's worker on the plant's clock: busy with one item at a time.
@@ -55,6 +65,46 @@ impl InProcessLink {
             replies: VecDeque::new(),
             started: Instant::now(),
             board: None,
+            tap: None,
+        }
+    }
+
+    /// The same controller with every item its worker takes shown to a
+    /// [`WorkerTap`] first ([`InProcessLink::worker_tap`]). Without a
+    /// board's timing the application queues its worker's items and this
+    /// link runs them right after each message.
+    pub fn recording_worker(mut self) -> Self {
+        if self.board.is_none() {
+            self.app = ControllerApp::with_queued_work("in-process", IN_PROCESS_CONTROL_RATE_HZ);
+        }
+        self.tap = Some(WorkerTap::new());
+        self
+    }
+
+    /// What the worker was given, when recorded.
+    pub fn worker_tap(&self) -> Option<&WorkerTap> {
+        self.tap.as_ref()
+    }
+
+    /// The tap, taken out of the link.
+    pub fn take_worker_tap(&mut self) -> Option<WorkerTap> {
+        self.tap.take()
+    }
+
+    /// Runs the worker on everything queued, delivering each news at once
+    /// (a recording link without a board's timing).
+    fn run_queued_now(&mut self) {
+        while let Some(item) = self.app.next_work() {
+            if let Some(tap) = self.tap.as_mut() {
+                tap.before(&item);
+            }
+            let news = self.app.process_work(&item);
+            if let Some(tap) = self.tap.as_mut() {
+                tap.after(&item, news.as_ref());
+            }
+            if let Some(news) = news {
+                self.app.deliver(&news);
+            }
         }
     }
 
@@ -103,7 +153,13 @@ impl InProcessLink {
             // Items are looked at once a control period: one that waited
             // for a busy worker starts within a period of it being free.
             let start_us = board.free_at_us.max(board.now_us);
+            if let Some(tap) = self.tap.as_mut() {
+                tap.before(&item);
+            }
             let news = self.app.process_work(&item);
+            if let Some(tap) = self.tap.as_mut() {
+                tap.after(&item, news.as_ref());
+            }
             let cost_us = match &item {
                 WorkItem::Job(ticket) => board.timing.job_us(&ticket.request),
                 WorkItem::Observation(_) => 0,
@@ -146,14 +202,38 @@ impl ByteLink for InProcessLink {
                     }
                     if let Message::SensorSample(sample) = &message {
                         self.advance_worker(sample.time_us);
+                        // Homed (or asked for no homing): the sample is the pick's.
+                        let to_pick = self.app.pick().is_some()
+                            && matches!(
+                                self.app.homing_stage(),
+                                None | Some(HomingStage::Homed(_))
+                            );
+                        if let (true, Some(tap)) = (to_pick, self.tap.as_mut()) {
+                            tap.pick_sample(sample.time_us);
+                        }
                     }
                     self.app.on_message(&message, &mut replies);
-                    match &self.board {
-                        Some(board) => {
+                    if let (Message::Configure(config), Some(tap)) = (&message, self.tap.as_mut()) {
+                        let accepted = replies.iter().any(|reply| {
+                            matches!(
+                                reply,
+                                Message::Ack {
+                                    kind: MessageKind::Configure,
+                                    ..
+                                }
+                            )
+                        });
+                        if accepted {
+                            tap.configured(config);
+                        }
+                    }
+                    match (&self.board, &self.tap) {
+                        (Some(board), _) => {
                             let now_us = board.now_us;
                             self.advance_worker(now_us);
                         }
-                        None => self.app.run_background(),
+                        (None, Some(_)) => self.run_queued_now(),
+                        (None, None) => self.app.run_background(),
                     }
                 }
                 Err(e) => {

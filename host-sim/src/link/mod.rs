@@ -16,6 +16,7 @@ mod in_process;
 mod noisy;
 mod serial;
 mod tcp;
+pub mod worker_tap;
 
 use std::fmt;
 use std::time::Duration;
@@ -26,6 +27,7 @@ pub use in_process::InProcessLink;
 pub use noisy::{DirectionCounts, NoiseConfig, NoiseCounts, NoisyLink, TelemetryCheck};
 pub use serial::SerialPortLink;
 pub use tcp::TcpLink;
+pub use worker_tap::{EstimateJob, WorkerLog, WorkerTap};
 
 /// A bidirectional byte stream to the controller.
 pub trait ByteLink {

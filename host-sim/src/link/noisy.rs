@@ -195,6 +195,16 @@ impl<L: ByteLink> NoisyLink<L> {
         }
     }
 
+    /// The link whose bytes are damaged.
+    pub fn inner(&self) -> &L {
+        &self.inner
+    }
+
+    /// The same, to change.
+    pub fn inner_mut(&mut self) -> &mut L {
+        &mut self.inner
+    }
+
     /// Turns the noise off (bytes pass unharmed, still checked) or on again.
     pub fn set_enabled(&mut self, enabled: bool) {
         self.enabled = enabled;

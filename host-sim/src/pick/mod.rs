@@ -8,6 +8,8 @@
 //! - [`report`]: the results table and the terminal's lines; [`csv`]: the CSV
 //!   files; [`plots`]: the PNG figures; [`outputs`]: all of a run's files in
 //!   its folder; [`synthetic`]: a made-up run for tests and benchmarks.
+//! - [`own_log`]: the observation log the controller's calibrator was fed,
+//!   with the truth and the controller's final estimate beside it.
 //! - [`montecarlo`]: many seeded picks over random workcells and their statistics.
 //! - [`faults`]: the pick under injected faults and its safety invariants.
 
@@ -17,6 +19,7 @@ pub mod free_run;
 pub mod invariants;
 pub mod montecarlo;
 pub mod outputs;
+pub mod own_log;
 pub mod plots;
 pub mod record;
 pub mod report;

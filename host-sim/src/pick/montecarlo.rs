@@ -5,13 +5,14 @@
 
 use std::fmt::Write as _;
 use std::fs;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use indicatif::ProgressBar;
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::own_log::{run_pick_logged, write_pick_log, InProcessOptions};
 use super::record::{PickResult, PickRun};
 use super::report::result_name;
 use super::runner::run_pick_in_process;
@@ -86,6 +87,40 @@ pub fn trial_seed(base: u64, trial: usize) -> u64 {
     base.wrapping_mul(1_000_000).wrapping_add(trial as u64)
 }
 
+/// Trials whose own observation log is written (see [`super::own_log`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrialLogs {
+    /// Each logged trial's files go to `dir`/trial-NNNN/.
+    pub dir: PathBuf,
+    /// The trials' indices.
+    pub trials: Vec<usize>,
+}
+
+impl TrialLogs {
+    /// The folder of trial `trial`'s log.
+    pub fn trial_dir(&self, trial: usize) -> PathBuf {
+        self.dir.join(format!("trial-{trial:04}"))
+    }
+}
+
+/// One pick of a trial, its own log written when `logs` asks for it: the
+/// same run (the recording link runs the controller the same way).
+fn run_trial(
+    experiment: &PickExperiment,
+    trial: usize,
+    seed: u64,
+    logs: Option<&TrialLogs>,
+) -> Result<PickRun> {
+    match logs.filter(|logs| logs.trials.contains(&trial)) {
+        Some(logs) => {
+            let logged = run_pick_logged(experiment, seed, InProcessOptions::default())?;
+            write_pick_log(&logs.trial_dir(trial), &logged)?;
+            Ok(logged.run)
+        }
+        None => run_pick_in_process(experiment, seed),
+    }
+}
+
 /// Runs `trials` picks of `experiment` in parallel (a failed simulation counts as
 /// a trial whose result names the error).
 pub fn run_trials(
@@ -94,11 +129,22 @@ pub fn run_trials(
     base_seed: u64,
     progress: &ProgressBar,
 ) -> Vec<TrialSummary> {
+    run_trials_logging(experiment, trials, base_seed, progress, None)
+}
+
+/// [`run_trials`], writing the own log of the trials `logs` names.
+pub fn run_trials_logging(
+    experiment: &PickExperiment,
+    trials: usize,
+    base_seed: u64,
+    progress: &ProgressBar,
+    logs: Option<&TrialLogs>,
+) -> Vec<TrialSummary> {
     let mut summaries: Vec<TrialSummary> = (0..trials)
         .into_par_iter()
         .map(|trial| {
             let seed = trial_seed(base_seed, trial);
-            let summary = match run_pick_in_process(experiment, seed) {
+            let summary = match run_trial(experiment, trial, seed, logs) {
                 Ok(run) => summarise(trial, seed, &run),
                 Err(error) => TrialSummary {
                     result: format!("error: {error:#}"),

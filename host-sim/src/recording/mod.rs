@@ -24,7 +24,10 @@ use crate::world::workcell::Workcell;
 
 pub mod truth;
 
-pub use truth::{read_truth_file, truth_path_for, write_truth_file, TruthFile};
+pub use truth::{
+    read_truth_file, read_truth_result, truth_path_for, write_truth_file, write_truth_file_of,
+    TruthFile,
+};
 
 /// Attempts at a tool pose whose noisy marks both land in the image.
 const EFFECTOR_POSE_ATTEMPTS: usize = 100;

@@ -32,6 +32,12 @@ pub fn truth_path_for(log_path: &Path) -> PathBuf {
 }
 
 pub fn write_truth_file(path: &Path, truth: &TruthFile) -> anyhow::Result<()> {
+    write_truth_file_of(path, truth)
+}
+
+/// Writes any truth whose calibration result sits at the top level (the
+/// pick's own log's too: `crate::pick::own_log::truth`).
+pub fn write_truth_file_of<T: Serialize>(path: &Path, truth: &T) -> anyhow::Result<()> {
     let file = File::create(path)
         .with_context(|| format!("cannot create truth file {}", path.display()))?;
     let mut writer = BufWriter::new(file);
@@ -48,4 +54,25 @@ pub fn read_truth_file(path: &Path) -> anyhow::Result<TruthFile> {
         File::open(path).with_context(|| format!("cannot open truth file {}", path.display()))?;
     serde_json::from_reader(BufReader::new(file))
         .with_context(|| format!("truth file {} is not a valid truth file", path.display()))
+}
+
+/// The calibration result of any truth file (this module's, the pick's own
+/// log's) or of anything else whose result sits at the top level (a
+/// `controller_estimate.json`): other keys are ignored.
+pub fn read_truth_result(path: &Path) -> anyhow::Result<CalibrationResult> {
+    #[derive(Deserialize)]
+    struct TopLevel {
+        #[serde(flatten)]
+        result: CalibrationResult,
+    }
+    let file =
+        File::open(path).with_context(|| format!("cannot open truth file {}", path.display()))?;
+    serde_json::from_reader::<_, TopLevel>(BufReader::new(file))
+        .map(|top| top.result)
+        .with_context(|| {
+            format!(
+                "{} holds no calibration result at its top level",
+                path.display()
+            )
+        })
 }

@@ -4,7 +4,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use crate::calibration::EstimateUncertainty;
+use crate::calibration::{EstimateUncertainty, SelfCalibrator};
 use crate::fusion::part_motion_in_base;
 use crate::observation::{CalibrationResult, CameraIntrinsics};
 use crate::planning::TaskState;
@@ -86,6 +86,18 @@ impl CellEstimate {
             pixel_sigma_px: result.quality.pixel_sigma_px as f32,
             report,
         }
+    }
+
+    /// The report with what `calibrator` has folded and discarded so far
+    /// (telemetry's `frames_folded`, `folds_discarded`).
+    pub fn with_folding<const F: usize, const E: usize, const P: usize>(
+        mut self,
+        calibrator: &SelfCalibrator<F, E, P>,
+    ) -> Self {
+        self.report.frames_folded = calibrator.folded().map_or(0, |folded| folded.frames());
+        self.report.folds_discarded =
+            u16::try_from(calibrator.folds_discarded()).unwrap_or(u16::MAX);
+        self
     }
 
     /// The grasp point's state in the base frame with the conveyor at

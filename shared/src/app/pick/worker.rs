@@ -115,6 +115,14 @@ impl PickWorker {
         )
     }
 
+    /// The estimate is trusted and used: what the calibrator's stores have no
+    /// room for from now on is folded at it rather than thinned away (a host
+    /// replaying the pick's log adopts where this did: `host-sim calibrate
+    /// --adopt-after-frames`).
+    fn adopt(&mut self) {
+        self.calibrator.adopt_last_estimate();
+    }
+
     /// Self-calibrates, refusing an estimate the pick cannot trust.
     fn estimate(
         &mut self,
@@ -133,11 +141,7 @@ impl PickWorker {
                 } => FaultCause::EffectorNotSeen,
                 _ => FaultCause::CalibrationFailed,
             })?;
-        let mut estimate = CellEstimate::new(&result, &sigma, time_us);
-        estimate.report.frames_folded =
-            self.calibrator.folded().map_or(0, |folded| folded.frames());
-        estimate.report.folds_discarded =
-            u16::try_from(self.calibrator.folds_discarded()).unwrap_or(u16::MAX);
+        let estimate = CellEstimate::new(&result, &sigma, time_us).with_folding(&self.calibrator);
         let report = &estimate.report;
         let trusted = report.sigma_part_m.is_finite()
             && report.sigma_base_m.is_finite()
@@ -170,9 +174,6 @@ impl PickWorker {
         if !at_most(rejected, self.settings.max_rejected_fraction) {
             return Err(FaultCause::CalibrationFailed);
         }
-        // Trusted: what the calibrator's stores have no room for from now on is
-        // folded at this estimate rather than thinned away.
-        self.calibrator.adopt_last_estimate();
         if preliminary {
             let poses = calibration_poses(
                 &estimate,
@@ -187,8 +188,10 @@ impl PickWorker {
             if poses.is_empty() {
                 return Err(FaultCause::DiscOutOfReach);
             }
+            self.adopt();
             Ok((estimate, poses))
         } else if part_path_enters_reach(&estimate, q_now, &self.model) {
+            self.adopt();
             Ok((estimate, Vec::new()))
         } else {
             Err(FaultCause::PartOutOfReach)
