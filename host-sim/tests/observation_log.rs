@@ -10,6 +10,7 @@
 use host_sim::calibration::{calibrate_log_with, Adoption, CalibratorChoice};
 use host_sim::link::BoardTiming;
 use host_sim::log::read_log_file;
+use host_sim::pick::ml_limit::limit_of;
 use host_sim::pick::own_log::estimate_file::{read_estimate_file, ControllerEstimateFile};
 use host_sim::pick::own_log::truth::{in_log_frames, PickTruthFile};
 use host_sim::pick::own_log::{
@@ -401,6 +402,19 @@ fn a_30_hz_log_replays_with_the_controllers_adoptions() {
         .collect();
     let exact = EstimateGap::between(&replay(Adoption::AfterFrames(points)), &estimate.result);
     assert!(exact.largest_m() <= SAME_CALIBRATOR_TOLERANCE, "{exact:?}");
+    // The full batch solve of the same frames (the maximum-likelihood limit)
+    // is where the folded estimate is, to a fraction of a millimetre.
+    let limit = limit_of(&logged).unwrap();
+    let (final_mm, limit_mm) = (
+        limit.controller.part_in_base_mm,
+        limit.limit.part_in_base_mm,
+    );
+    eprintln!("30 Hz: final estimate {final_mm:.3} mm, limit {limit_mm:.3} mm");
+    assert!(final_mm.is_finite() && limit_mm.is_finite());
+    assert!(
+        final_mm <= 1.5 * limit_mm + 0.2,
+        "{final_mm} against {limit_mm}"
+    );
     let unadopted =
         EstimateGap::between(&replay(Adoption::AfterFrames(Vec::new())), &estimate.result);
     assert!(

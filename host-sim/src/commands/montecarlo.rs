@@ -8,7 +8,10 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
 
-use crate::pick::montecarlo::{montecarlo_table, run_trials_logging, write_trials_csv, TrialLogs};
+use crate::pick::montecarlo::{
+    limit_table, montecarlo_table, run_trials_recording, write_trials_csv, TrialLogs,
+    TrialRecording,
+};
 
 /// Options of `host-sim montecarlo`.
 #[derive(clap::Args, Debug, Clone)]
@@ -38,6 +41,11 @@ pub struct Args {
     /// Folder of the logged trials (needed with --log-trials).
     #[arg(long)]
     pub log_dir: Option<PathBuf>,
+    /// Also solve each trial's data up to its final estimate in full batch
+    /// (every frame and sighting: the maximum-likelihood limit) and report
+    /// the final estimate against it.
+    #[arg(long)]
+    pub ml_limit: bool,
 }
 
 pub fn run(args: &Args) -> Result<()> {
@@ -58,18 +66,17 @@ pub fn run(args: &Args) -> Result<()> {
         (None, false) => bail!("--log-trials needs --log-dir"),
         (_, true) => None,
     };
+    let recording = TrialRecording {
+        logs: logs.clone(),
+        ml_limit: args.ml_limit,
+    };
     let summaries = pool.install(|| {
-        run_trials_logging(
-            &experiment,
-            args.trials,
-            args.seed,
-            &progress,
-            logs.as_ref(),
-        )
+        run_trials_recording(&experiment, args.trials, args.seed, &progress, &recording)
     });
     progress.finish_and_clear();
     let elapsed = started.elapsed().as_secs_f64();
     let mut report = montecarlo_table(&experiment.name, &summaries);
+    report.push_str(&limit_table(&summaries));
     let _ = writeln!(
         report,
         "\n{} picks in {elapsed:.1} s on {} threads (seed {}); every trial's seed is in trials.csv.",

@@ -17,6 +17,7 @@ pub mod csv;
 pub mod faults;
 pub mod free_run;
 pub mod invariants;
+pub mod ml_limit;
 pub mod montecarlo;
 pub mod outputs;
 pub mod own_log;

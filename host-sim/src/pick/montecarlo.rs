@@ -12,6 +12,7 @@ use indicatif::ProgressBar;
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::ml_limit::{limit_of, LimitErrors};
 use super::own_log::{run_pick_logged, write_pick_log, InProcessOptions};
 use super::record::{PickResult, PickRun};
 use super::report::result_name;
@@ -47,6 +48,13 @@ pub struct TrialSummary {
     pub disc_azimuth_deg: f64,
     pub disc_distance_m: f64,
     pub disc_below_shoulder_m: f64,
+    /// With `--ml-limit` (NaN without): the part in the base frame (worst over
+    /// a revolution) and the part's yaw, the controller's final estimate and
+    /// the full batch solve of the same frames, each against the truth.
+    pub final_part_in_base_mm: f64,
+    pub limit_part_in_base_mm: f64,
+    pub final_part_yaw_deg: f64,
+    pub limit_part_yaw_deg: f64,
 }
 
 fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
@@ -79,6 +87,10 @@ fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
         disc_azimuth_deg: disc[1].atan2(disc[0]).to_degrees(),
         disc_distance_m: disc[0].hypot(disc[1]),
         disc_below_shoulder_m: SHOULDER_HEIGHT_M - disc[2],
+        final_part_in_base_mm: nan,
+        limit_part_in_base_mm: nan,
+        final_part_yaw_deg: nan,
+        limit_part_yaw_deg: nan,
     }
 }
 
@@ -103,22 +115,39 @@ impl TrialLogs {
     }
 }
 
-/// One pick of a trial, its own log written when `logs` asks for it: the
-/// same run (the recording link runs the controller the same way).
+/// What a trial records beside its pick.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TrialRecording {
+    /// Trials whose own log is written.
+    pub logs: Option<TrialLogs>,
+    /// Every trial's final estimate against the maximum-likelihood limit of
+    /// its data ([`super::ml_limit`]).
+    pub ml_limit: bool,
+}
+
+/// One pick of a trial, its own log written when `recording` asks for it
+/// (the same run: the recording link runs the controller the same way), its
+/// limit measured when asked.
 fn run_trial(
     experiment: &PickExperiment,
     trial: usize,
     seed: u64,
-    logs: Option<&TrialLogs>,
-) -> Result<PickRun> {
-    match logs.filter(|logs| logs.trials.contains(&trial)) {
-        Some(logs) => {
-            let logged = run_pick_logged(experiment, seed, InProcessOptions::default())?;
-            write_pick_log(&logs.trial_dir(trial), &logged)?;
-            Ok(logged.run)
-        }
-        None => run_pick_in_process(experiment, seed),
+    recording: &TrialRecording,
+) -> Result<(PickRun, Option<LimitErrors>)> {
+    let logs = recording
+        .logs
+        .as_ref()
+        .filter(|logs| logs.trials.contains(&trial));
+    if logs.is_none() && !recording.ml_limit {
+        return Ok((run_pick_in_process(experiment, seed)?, None));
     }
+    let logged = run_pick_logged(experiment, seed, InProcessOptions::default())?;
+    if let Some(logs) = logs {
+        write_pick_log(&logs.trial_dir(trial), &logged)?;
+    }
+    // A pick without a final estimate has no limit to compare with.
+    let limit = recording.ml_limit.then(|| limit_of(&logged).ok()).flatten();
+    Ok((logged.run, limit))
 }
 
 /// Runs `trials` picks of `experiment` in parallel (a failed simulation counts as
@@ -129,23 +158,29 @@ pub fn run_trials(
     base_seed: u64,
     progress: &ProgressBar,
 ) -> Vec<TrialSummary> {
-    run_trials_logging(experiment, trials, base_seed, progress, None)
+    run_trials_recording(
+        experiment,
+        trials,
+        base_seed,
+        progress,
+        &TrialRecording::default(),
+    )
 }
 
-/// [`run_trials`], writing the own log of the trials `logs` names.
-pub fn run_trials_logging(
+/// [`run_trials`], recording what `recording` asks for.
+pub fn run_trials_recording(
     experiment: &PickExperiment,
     trials: usize,
     base_seed: u64,
     progress: &ProgressBar,
-    logs: Option<&TrialLogs>,
+    recording: &TrialRecording,
 ) -> Vec<TrialSummary> {
     let mut summaries: Vec<TrialSummary> = (0..trials)
         .into_par_iter()
         .map(|trial| {
             let seed = trial_seed(base_seed, trial);
-            let summary = match run_trial(experiment, trial, seed, logs) {
-                Ok(run) => summarise(trial, seed, &run),
+            let summary = match run_trial(experiment, trial, seed, recording) {
+                Ok((run, limit)) => with_limit(summarise(trial, seed, &run), limit.as_ref()),
                 Err(error) => TrialSummary {
                     result: format!("error: {error:#}"),
                     ..summarise(trial, seed, &PickRun::empty(&experiment.name, seed))
@@ -157,6 +192,68 @@ pub fn run_trials_logging(
         .collect();
     summaries.sort_by_key(|s| s.trial);
     summaries
+}
+
+fn with_limit(summary: TrialSummary, limit: Option<&LimitErrors>) -> TrialSummary {
+    match limit {
+        Some(limit) => TrialSummary {
+            final_part_in_base_mm: limit.controller.part_in_base_mm,
+            limit_part_in_base_mm: limit.limit.part_in_base_mm,
+            final_part_yaw_deg: limit.controller.part_yaw_deg,
+            limit_part_yaw_deg: limit.limit.part_yaw_deg,
+            ..summary
+        },
+        None => summary,
+    }
+}
+
+/// The controller's final estimate against the maximum-likelihood limit of
+/// the same frames (`--ml-limit`): median and 95th percentile of each, the
+/// ratio of the 95th percentiles and the median of the per-trial ratios.
+/// Empty when no trial measured it.
+pub fn limit_table(summaries: &[TrialSummary]) -> String {
+    let measured: Vec<&TrialSummary> = summaries
+        .iter()
+        .filter(|s| s.limit_part_in_base_mm.is_finite())
+        .collect();
+    if measured.is_empty() {
+        return String::new();
+    }
+    let mut text = format!(
+        "\nThe final estimate against the maximum-likelihood limit of the same frames \
+         (the full batch solve, `host_sim::batch_ml`), {} trials; median / 95th percentile:\n\n\
+         | quantity | final estimate | limit | 95th ratio | paired ratio (median) |\n|---|---|---|---|---|\n",
+        measured.len()
+    );
+    let rows: [(&str, fn(&TrialSummary) -> (f64, f64)); 2] = [
+        ("part in the base frame, worst over a turn (mm)", |s| {
+            (s.final_part_in_base_mm, s.limit_part_in_base_mm)
+        }),
+        ("part yaw (deg)", |s| {
+            (s.final_part_yaw_deg, s.limit_part_yaw_deg)
+        }),
+    ];
+    for (name, pick) in rows {
+        let (controller, limit): (Vec<f64>, Vec<f64>) = measured.iter().map(|s| pick(s)).unzip();
+        let ratios: Vec<f64> = controller
+            .iter()
+            .zip(&limit)
+            .filter(|(_, l)| **l > 0.0)
+            .map(|(c, l)| c / l)
+            .collect();
+        let p95 = |v: &[f64]| percentile(v, 95.0);
+        let _ = writeln!(
+            text,
+            "| {name} | {:.3} / {:.3} | {:.3} / {:.3} | {:.2} | {:.2} |",
+            percentile(&controller, 50.0),
+            p95(&controller),
+            percentile(&limit, 50.0),
+            p95(&limit),
+            p95(&controller) / p95(&limit),
+            percentile(&ratios, 50.0)
+        );
+    }
+    text
 }
 
 /// The `p`-th percentile (nearest rank) of the finite values; NaN when none.
@@ -291,12 +388,12 @@ pub fn azimuth_table(summaries: &[TrialSummary]) -> String {
 /// Writes `trials.csv`: one line per trial.
 pub fn write_trials_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
     let mut text = String::from(
-        "trial,seed,result,success,estimate_error_x_mm,estimate_error_y_mm,estimate_error_z_mm,estimate_error_mm,estimate_yaw_error_deg,grasp_error_mm,grasp_yaw_error_deg,grasp_relative_speed_mm_s,calibrated_after_s,duration_s,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm,disc_azimuth_deg,disc_distance_m,disc_below_shoulder_m\n",
+        "trial,seed,result,success,estimate_error_x_mm,estimate_error_y_mm,estimate_error_z_mm,estimate_error_mm,estimate_yaw_error_deg,grasp_error_mm,grasp_yaw_error_deg,grasp_relative_speed_mm_s,calibrated_after_s,duration_s,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm,disc_azimuth_deg,disc_distance_m,disc_below_shoulder_m,final_part_in_base_mm,limit_part_in_base_mm,final_part_yaw_deg,limit_part_yaw_deg\n",
     );
     for s in summaries {
         let _ = writeln!(
             text,
-            "{},{},\"{}\",{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.4},{:.4},{:.2},{:.2},{:.4},{:.4}",
+            "{},{},\"{}\",{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.4},{:.4},{:.2},{:.2},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}",
             s.trial,
             s.seed,
             s.result.replace('"', "'"),
@@ -316,7 +413,11 @@ pub fn write_trials_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
             s.min_tool_clearance_mm,
             s.disc_azimuth_deg,
             s.disc_distance_m,
-            s.disc_below_shoulder_m
+            s.disc_below_shoulder_m,
+            s.final_part_in_base_mm,
+            s.limit_part_in_base_mm,
+            s.final_part_yaw_deg,
+            s.limit_part_yaw_deg
         );
     }
     fs::write(path, text).with_context(|| format!("writing {}", path.display()))
