@@ -207,6 +207,9 @@ fn with_limit(summary: TrialSummary, limit: Option<&LimitErrors>) -> TrialSummar
     }
 }
 
+/// A quantity's (final estimate, limit) of a trial.
+type LimitColumns = fn(&TrialSummary) -> (f64, f64);
+
 /// The controller's final estimate against the maximum-likelihood limit of
 /// the same frames (`--ml-limit`): median and 95th percentile of each, the
 /// ratio of the 95th percentiles and the median of the per-trial ratios.
@@ -225,7 +228,7 @@ pub fn limit_table(summaries: &[TrialSummary]) -> String {
          | quantity | final estimate | limit | 95th ratio | paired ratio (median) |\n|---|---|---|---|---|\n",
         measured.len()
     );
-    let rows: [(&str, fn(&TrialSummary) -> (f64, f64)); 2] = [
+    let rows: [(&str, LimitColumns); 2] = [
         ("part in the base frame, worst over a turn (mm)", |s| {
             (s.final_part_in_base_mm, s.limit_part_in_base_mm)
         }),
