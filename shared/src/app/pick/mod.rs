@@ -426,14 +426,21 @@ impl PickController {
                         z_m: target.z_m.max(floor),
                         ..target
                     };
-                    let position = Vector3::new(
-                        target.radius_m * libm::cosf(target.azimuth_rad),
-                        target.radius_m * libm::sinf(target.azimuth_rad),
-                        target.z_m,
-                    );
                     let planned = self.arc_to(self.route.near_start_with_wrist(target));
-                    let reachable = crate::planning::within_reach(&self.model, &position);
-                    if raised && (planned.is_err() || !reachable) {
+                    // Reach is checked for a raised pose only (a pose at its own
+                    // height was planned reachable with the estimate): the trig
+                    // and the reach test cost the period a few hundred instructions.
+                    if raised
+                        && (planned.is_err()
+                            || !crate::planning::within_reach(
+                                &self.model,
+                                &Vector3::new(
+                                    target.radius_m * libm::cosf(target.azimuth_rad),
+                                    target.radius_m * libm::sinf(target.azimuth_rad),
+                                    target.z_m,
+                                ),
+                            ))
+                    {
                         // Out of reach raised: the next pose.
                         self.enter(Step::CalibrateMove(i.saturating_add(1)));
                         return;
