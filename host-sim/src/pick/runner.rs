@@ -21,7 +21,7 @@ use super::invariants::{PeriodTruth, SafetyMonitor};
 use super::record::{
     CalibrationRecord, GraspRecord, LinkRecord, PhaseEvent, PickResult, PickRun, TickRecord,
 };
-use crate::geometry::angle_distance;
+use crate::geometry::{angle_distance, wrap_angle};
 use crate::link::{ByteLink, FramedLink, LinkError, NoiseConfig, NoisyLink};
 use crate::scenario::pick::PickExperiment;
 use crate::world::{World, WorldTruth};
@@ -230,6 +230,12 @@ pub fn run_pick_observed<L: ByteLink>(
     let mut records = Vec::new();
     let mut phases: Vec<PhaseEvent> = Vec::new();
     let mut calibrations = Vec::new();
+    // The controller's disc frame starts where the disc stood when the pick
+    // began (after homing), not at the world's zero: the world's angle minus
+    // the controller's, a circular mean over its telemetry (each sample
+    // quantised to an encoder count; the mean is good to about 1e-4 rad),
+    // turns the true base yaw into the controller's frame for scoring.
+    let mut disc_offset = (0.0_f64, 0.0_f64);
     let mut grasp = None;
     let mut last_phase = None;
     let mut last_fault: Option<FaultCause> = None;
@@ -325,6 +331,12 @@ pub fn run_pick_observed<L: ByteLink>(
                             {
                                 ended_at = Some(truth.time_s);
                             }
+                            // Homing sends no telemetry but a fault's (theta 0).
+                            if !matches!(telemetry.phase, PickPhase::Idle | PickPhase::Faulted) {
+                                let (s, c) =
+                                    (truth.theta_rad - f64::from(telemetry.theta_rad)).sin_cos();
+                                disc_offset = (disc_offset.0 + s, disc_offset.1 + c);
+                            }
                             latest_estimate = telemetry.part_base_m.map(|p| {
                                 (to_f64(p), f64::from(telemetry.part_yaw_base_rad), truth)
                             });
@@ -336,7 +348,10 @@ pub fn run_pick_observed<L: ByteLink>(
                                 t_s: truth.time_s,
                                 report,
                                 true_camera_height_m: workcell.camera.height_m(),
-                                true_base_yaw_rad: workcell.base_from_disc_yaw_rad,
+                                true_base_yaw_rad: wrap_angle(
+                                    workcell.base_from_disc_yaw_rad
+                                        + disc_offset.0.atan2(disc_offset.1),
+                                ),
                                 true_base_translation_m: [
                                     workcell.base_from_disc_translation_m.x,
                                     workcell.base_from_disc_translation_m.y,
