@@ -93,7 +93,7 @@ fn refined(choice: CalibratorChoice, written: &Written) -> CalibrationResult {
         adoption(choice, written),
         &written.log,
         provenance.log_frames,
-        provenance.config.config(),
+        provenance.config,
     )
     .unwrap()
     .refined
@@ -168,7 +168,7 @@ fn the_picks_own_log_replays_to_the_controllers_final_estimate() {
         adoption(CalibratorChoice::Pick, &written),
         &written.log,
         written.log.frames.len(),
-        provenance.config.config(),
+        provenance.config,
     )
     .unwrap()
     .refined
@@ -389,7 +389,7 @@ fn a_30_hz_log_replays_with_the_controllers_adoptions() {
             adoption,
             &log,
             provenance.log_frames,
-            provenance.config.config(),
+            provenance.config,
         )
         .unwrap()
         .refined

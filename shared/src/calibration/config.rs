@@ -1,7 +1,8 @@
 //! Tunables of the self-calibration, with defaults for the paper's setting.
 
-/// How the calibration weighs, gates and iterates.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// How the calibration weighs, gates and iterates (serialisable, so that a log's
+/// readers can record the configuration an estimate was made with).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CalibrationConfig {
     /// Experiment 2 of the paper: the disc plane's height in the base frame is known.
     /// Then `base_from_disc.translation_m[2]` is this value and Eq 10 is not needed for depth.

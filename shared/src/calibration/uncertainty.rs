@@ -7,7 +7,7 @@ use super::normal_blocks::{ArrowMatrix, MarginalCovariance, CAMERA_PARAMETERS};
 
 /// One-sigma uncertainties of the refined estimate (metres, radians); serialised
 /// beside the calibration result as `uncertainty_1sigma`.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct EstimateUncertainty {
     /// Of `camera.height_m`.
     pub camera_height_m: f64,

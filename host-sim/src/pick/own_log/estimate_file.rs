@@ -18,70 +18,6 @@ use shared::observation::CalibrationResult;
 pub const PICK_CALIBRATOR_NAME: &str =
     "shared::app::pick::PickCalibrator (SelfCalibrator<256, 128, 5>)";
 
-/// The one-sigma uncertainties of [`EstimateUncertainty`], readable back.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Sigmas {
-    pub camera_height_m: f64,
-    pub camera_position_m: [f64; 3],
-    pub camera_rotation_rad: [f64; 3],
-    pub part_position_m: [f64; 3],
-    pub base_yaw_rad: f64,
-    pub base_translation_m: [f64; 3],
-}
-
-impl From<&EstimateUncertainty> for Sigmas {
-    fn from(u: &EstimateUncertainty) -> Self {
-        Self {
-            camera_height_m: u.camera_height_m,
-            camera_position_m: u.camera_position_m,
-            camera_rotation_rad: u.camera_rotation_rad,
-            part_position_m: u.part_position_m,
-            base_yaw_rad: u.base_yaw_rad,
-            base_translation_m: u.base_translation_m,
-        }
-    }
-}
-
-/// [`CalibrationConfig`], readable back.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct ConfigRecord {
-    /// The disc surface's height in the base frame the controller was told
-    /// (measured, not the truth), if any.
-    pub disc_height_in_base_m: Option<f64>,
-    pub pixel_sigma: f64,
-    pub huber_k: f64,
-    pub outlier_gate_sigma: f64,
-    pub max_iterations: u32,
-    pub min_rotation_rad: f64,
-}
-
-impl From<&CalibrationConfig> for ConfigRecord {
-    fn from(c: &CalibrationConfig) -> Self {
-        Self {
-            disc_height_in_base_m: c.disc_height_in_base_m,
-            pixel_sigma: c.pixel_sigma,
-            huber_k: c.huber_k,
-            outlier_gate_sigma: c.outlier_gate_sigma,
-            max_iterations: c.max_iterations,
-            min_rotation_rad: c.min_rotation_rad,
-        }
-    }
-}
-
-impl ConfigRecord {
-    /// The configuration recorded.
-    pub fn config(&self) -> CalibrationConfig {
-        CalibrationConfig {
-            disc_height_in_base_m: self.disc_height_in_base_m,
-            pixel_sigma: self.pixel_sigma,
-            huber_k: self.huber_k,
-            outlier_gate_sigma: self.outlier_gate_sigma,
-            max_iterations: self.max_iterations,
-            min_rotation_rad: self.min_rotation_rad,
-        }
-    }
-}
-
 /// Where the estimate came from.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EstimateProvenance {
@@ -90,7 +26,7 @@ pub struct EstimateProvenance {
     /// The calibrator's type ([`PICK_CALIBRATOR_NAME`]).
     pub calibrator: String,
     /// Its configuration, as the controller built it from the cell's.
-    pub config: ConfigRecord,
+    pub config: CalibrationConfig,
     /// The estimate was made from the log's first `log_frames` frames
     /// (`host-sim calibrate --frames`); the log goes on to the grasp.
     pub log_frames: usize,
@@ -118,7 +54,7 @@ pub struct EstimateProvenance {
 pub struct ControllerEstimateFile {
     #[serde(flatten)]
     pub result: CalibrationResult,
-    pub uncertainty_1sigma: Sigmas,
+    pub uncertainty_1sigma: EstimateUncertainty,
     pub controller: EstimateProvenance,
 }
 

@@ -171,12 +171,12 @@ pub fn controller_estimate(
     };
     Some(ControllerEstimateFile {
         result: result.clone(),
-        uncertainty_1sigma: sigma.into(),
+        uncertainty_1sigma: *sigma,
         controller: EstimateProvenance {
             experiment: logged.run.experiment.clone(),
             seed: logged.run.seed,
             calibrator: PICK_CALIBRATOR_NAME.to_string(),
-            config: (&worker.config).into(),
+            config: worker.config,
             log_frames: job.frames_before - not_logged.iter().filter(|i| before(i)).count(),
             frames_refused: worker
                 .refused
