@@ -10,7 +10,7 @@
 //! stored exactly as before (f64 angle, f32 pixels), so every estimate is unchanged.
 
 use super::records::{FrameRecord, PixelF32};
-use super::store::{Admission, Placement, ThinningSchedule};
+use super::store::{move_item, Admission, Placement, ThinningSchedule};
 use crate::observation::MAX_PART_FEATURES;
 use heapless::Vec;
 
@@ -206,15 +206,6 @@ impl<const N: usize, const P: usize> FrameStore<N, P> {
         self.indices.truncate(kept);
         self.pixels
             .truncate(kept.saturating_mul(width).div_ceil(P.max(1)));
-    }
-}
-
-/// `items[to] = items[from]` where both exist.
-fn move_item<T: Copy>(items: &mut [T], from: usize, to: usize) {
-    if let Some(value) = items.get(from).copied() {
-        if let Some(slot) = items.get_mut(to) {
-            *slot = value;
-        }
     }
 }
 

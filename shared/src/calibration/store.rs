@@ -122,6 +122,15 @@ impl Default for ThinningSchedule {
     }
 }
 
+/// `items[to] = items[from]` where both exist (a store's compaction).
+pub(super) fn move_item<T: Copy>(items: &mut [T], from: usize, to: usize) {
+    if let Some(value) = items.get(from).copied() {
+        if let Some(slot) = items.get_mut(to) {
+            *slot = value;
+        }
+    }
+}
+
 /// An evenly thinned subsample of at most `N` items.
 #[derive(Debug, Clone)]
 pub struct ThinningStore<T, const N: usize> {
@@ -148,16 +157,21 @@ impl<T: Copy, const N: usize> ThinningStore<T, N> {
             Admission::Skip => false,
             Admission::Keep => true,
             Admission::Halve { keep } => {
-                let schedule = self.schedule;
-                let mut slot = 0;
-                while let Some(&kept_index) = self.indices.get(slot) {
-                    if schedule.on_stride(kept_index) {
-                        slot += 1;
-                    } else {
-                        self.items.remove(slot);
-                        self.indices.remove(slot);
+                // One pass, in order: the items on the doubled stride move down.
+                let mut kept = 0;
+                for from in 0..self.items.len() {
+                    let on_stride = self
+                        .indices
+                        .get(from)
+                        .is_some_and(|&index| self.schedule.on_stride(index));
+                    if on_stride {
+                        move_item(&mut self.items, from, kept);
+                        move_item(&mut self.indices, from, kept);
+                        kept += 1;
                     }
                 }
+                self.items.truncate(kept);
+                self.indices.truncate(kept);
                 keep
             }
         };
