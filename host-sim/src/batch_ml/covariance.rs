@@ -5,6 +5,7 @@
 //! `sigma^2 = sum |r|^2 / (2 N - parameters)`.
 
 use nalgebra::{DMatrix, Matrix3, Vector3};
+use shared::calibration::uncertainty::{part_in_base_sigmas, GraspCovariance, GraspGeometry};
 use shared::calibration::EstimateUncertainty;
 
 use super::model::{BatchModel, Layout};
@@ -112,6 +113,8 @@ impl Covariance {
             None => (0.0, [0.0; 3]),
         };
         let axis = |offset: usize| [0, 1, 2].map(|i| sigma(covariance, offset + i));
+        let [part_base_horizontal_m, part_base_vertical_m, part_yaw_base_rad] =
+            part_in_base(covariance, layout, model, &mean);
         EstimateUncertainty {
             camera_height_m: camera_position_m[2],
             camera_position_m,
@@ -119,8 +122,55 @@ impl Covariance {
             part_position_m,
             base_yaw_rad,
             base_translation_m,
+            part_base_horizontal_m,
+            part_base_vertical_m,
+            part_yaw_base_rad,
         }
     }
+}
+
+/// The part's sigmas in the base frame, through the same propagation as the
+/// calibrator's (`part_in_base_sigmas`) from this solve's own covariance.
+fn part_in_base(
+    covariance: &DMatrix<f64>,
+    layout: &Layout,
+    model: &BatchModel,
+    mean: &DMatrix<f64>,
+) -> [f64; 3] {
+    let n = layout.parameter_count();
+    // Rows: the features' mean, base yaw, base translation, feature 1 - 0.
+    let mut rows = DMatrix::<f64>::zeros(10, n);
+    rows.view_mut((0, 0), (3, n)).copy_from(mean);
+    if let Some(base) = layout.base() {
+        rows[(3, base)] = 1.0;
+        for axis in 0..layout.base_axes() {
+            rows[(4 + axis, base + 1 + axis)] = 1.0;
+        }
+    }
+    if layout.feature_count >= 2 {
+        for axis in 0..3 {
+            rows[(7 + axis, layout.feature(1) + axis)] = 1.0;
+            rows[(7 + axis, layout.feature(0) + axis)] = -1.0;
+        }
+    }
+    let joint = &rows * covariance * rows.transpose();
+    let grasp = GraspCovariance::from_fn(|r, c| joint[(r, c)]);
+    let count = model.features_rotating.len().max(1) as f64;
+    let part_rotating = model
+        .features_rotating
+        .iter()
+        .fold(Vector3::zeros(), |sum, f| sum + f)
+        / count;
+    let yaw_line_rotating = match model.features_rotating.as_slice() {
+        [first, second, ..] => second - first,
+        _ => Vector3::zeros(),
+    };
+    let geometry = GraspGeometry {
+        part_rotating,
+        yaw_line_rotating,
+        base_yaw: model.base_yaw_rad,
+    };
+    part_in_base_sigmas(&grasp, &geometry)
 }
 
 /// Root-sum-square of a per-axis sigma, for printing.

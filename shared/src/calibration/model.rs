@@ -7,6 +7,7 @@ use nalgebra::{Matrix2x3, Matrix3, Rotation3, SMatrix, Vector2, Vector3};
 use super::frame_store::FrameView;
 use super::pinhole::Pinhole;
 use super::records::{to_vector, EffectorRecord, FrameRecord};
+use super::uncertainty::GraspGeometry;
 use crate::observation::MAX_PART_FEATURES;
 
 /// Camera pose, part feature points and `base_from_disc`.
@@ -148,6 +149,23 @@ pub fn for_each_sighting_observation(
 }
 
 impl WorkcellModel {
+    /// The part's mean and yaw line, where its uncertainty in the base frame
+    /// is taken (`EstimateUncertainty::part_base_*`).
+    pub fn grasp_geometry(&self) -> GraspGeometry {
+        let features = self.features_rotating.iter().take(self.feature_count);
+        let count = self.feature_count.clamp(1, MAX_PART_FEATURES) as f64;
+        let part_rotating = features.fold(Vector3::zeros(), |sum, f| sum + f) / count;
+        let yaw_line_rotating = match self.features_rotating.get(..2) {
+            Some([first, second]) if self.feature_count >= 2 => second - first,
+            _ => Vector3::zeros(),
+        };
+        GraspGeometry {
+            part_rotating,
+            yaw_line_rotating,
+            base_yaw: self.base_yaw,
+        }
+    }
+
     /// Disc-frame coordinates of the observed point under this model.
     pub fn point_disc(&self, target: &Target) -> Vector3<f64> {
         match *target {

@@ -77,7 +77,19 @@ pub struct MarginalCovariance {
     pub camera_and_base: ArrowMatrix,
     /// Of the mean of features `0..feature_count` in the rotating frame.
     pub part_position: Matrix3<f64>,
+    /// Between that mean (rows) and the camera and base parameters (columns):
+    /// both lean on the camera, so the part in the base frame (Eq 1) is not
+    /// as uncertain as the two added apart.
+    pub part_and_arrow: PartCross,
+    /// Of `feature 1 - feature 0`, the line that gives the part's yaw (zero
+    /// with fewer than two features).
+    pub yaw_line: Matrix3<f64>,
+    /// Between that line (rows) and the camera and base parameters.
+    pub yaw_line_and_arrow: PartCross,
 }
+
+/// A covariance between a point of the part (3 rows) and the camera and base parameters.
+pub type PartCross = SMatrix<f64, 3, ARROW_PARAMETERS>;
 
 /// The blocks of the arrowhead normal equations `J^T W J` and gradient `J^T W r`.
 #[derive(Debug, Clone, PartialEq)]
@@ -316,36 +328,64 @@ impl NormalBlocks {
     pub fn covariance(&self, freedom: &Freedom, variance: f64) -> Option<MarginalCovariance> {
         let mut schur = self.arrow_holding(freedom);
         let mut sum_inverse = Matrix3::<f64>::zeros();
+        // `G_i = V_i^-1 W_i^T`: how feature i follows the camera once the
+        // features are eliminated; `C(f_i, f_j) = d_ij V_i^-1 + G_i C_cc G_j^T`
+        // and `C(f_i, a) = -G_i C_ca`.
         let mut sum_inverse_cross = SMatrix::<f64, 3, CAMERA_PARAMETERS>::zeros();
+        let mut line_inverse = Matrix3::<f64>::zeros();
+        let mut line_cross = SMatrix::<f64, 3, CAMERA_PARAMETERS>::zeros();
         let features = self
             .features
             .iter()
             .zip(&self.cross)
-            .take(freedom.features());
-        for (v, w) in features {
+            .take(freedom.features())
+            .enumerate();
+        for (slot, (v, w)) in features {
             let inverse = v.try_inverse()?;
             let inverse_cross = inverse * w.transpose();
             let mut cc = schur.fixed_view_mut::<CAMERA_PARAMETERS, CAMERA_PARAMETERS>(0, 0);
             cc -= w * inverse_cross;
             sum_inverse += inverse;
             sum_inverse_cross += inverse_cross;
+            // The yaw line is feature 1 minus feature 0.
+            match slot {
+                0 => {
+                    line_inverse += inverse;
+                    line_cross -= inverse_cross;
+                }
+                1 => {
+                    line_inverse += inverse;
+                    line_cross += inverse_cross;
+                }
+                _ => {}
+            }
+        }
+        if freedom.features() < 2 {
+            line_inverse = Matrix3::zeros();
+            line_cross = SMatrix::zeros();
         }
         let mut camera_and_base = schur.try_inverse()?;
+        for k in (0..ARROW_PARAMETERS).filter(|&k| !freedom.arrow_free(k)) {
+            camera_and_base.row_mut(k).fill(0.0);
+            camera_and_base.column_mut(k).fill(0.0);
+        }
         // The part position is the mean of the features: (1/n^2) sum_ij C(f_i, f_j).
         let camera = camera_and_base.fixed_view::<CAMERA_PARAMETERS, CAMERA_PARAMETERS>(0, 0);
+        let camera_rows = camera_and_base.fixed_view::<CAMERA_PARAMETERS, ARROW_PARAMETERS>(0, 0);
         let count = freedom.feature_count.clamp(1, MAX_PART_FEATURES) as f64;
         let part_position = (sum_inverse
             + sum_inverse_cross * camera * sum_inverse_cross.transpose())
             * (variance / (count * count));
+        let part_and_arrow = -(sum_inverse_cross * camera_rows) * (variance / count);
+        let yaw_line = (line_inverse + line_cross * camera * line_cross.transpose()) * variance;
+        let yaw_line_and_arrow = -(line_cross * camera_rows) * variance;
         camera_and_base *= variance;
-        for k in (0..ARROW_PARAMETERS).filter(|&k| !freedom.arrow_free(k)) {
-            if let Some(e) = camera_and_base.get_mut((k, k)) {
-                *e = 0.0;
-            }
-        }
         Some(MarginalCovariance {
             camera_and_base,
             part_position,
+            part_and_arrow,
+            yaw_line,
+            yaw_line_and_arrow,
         })
     }
 }
@@ -632,6 +672,46 @@ mod tests {
                 );
             }
             assert!((covariance.part_position - part).norm() <= 1e-10 * part.norm());
+            // The part's mean and its yaw line against the camera and base.
+            let mut part_cross = PartCross::zeros();
+            for c in 0..ARROW_PARAMETERS {
+                for i in 0..n {
+                    for d in 0..3 {
+                        part_cross[(d, c)] +=
+                            inverse[(FEATURE_OFFSET + 3 * i + d, arrow_index(c))] / n as f64;
+                    }
+                }
+            }
+            let close = |got: &PartCross, expected: &PartCross, what: &str| {
+                assert!(
+                    (got - expected).norm() <= 1e-10 * expected.norm().max(1e-300),
+                    "seed {seed} {what}: {got} vs {expected}"
+                );
+            };
+            close(&covariance.part_and_arrow, &part_cross, "part and arrow");
+            if n >= 2 {
+                let block = |i: usize, j: usize| {
+                    inverse
+                        .fixed_view::<3, 3>(FEATURE_OFFSET + 3 * i, FEATURE_OFFSET + 3 * j)
+                        .into_owned()
+                };
+                let line = block(1, 1) + block(0, 0) - block(0, 1) - block(1, 0);
+                assert!(
+                    (covariance.yaw_line - line).norm() <= 1e-10 * line.norm(),
+                    "seed {seed} yaw line"
+                );
+                let line_cross = PartCross::from_fn(|d, c| {
+                    inverse[(FEATURE_OFFSET + 3 + d, arrow_index(c))]
+                        - inverse[(FEATURE_OFFSET + d, arrow_index(c))]
+                });
+                close(
+                    &covariance.yaw_line_and_arrow,
+                    &line_cross,
+                    "yaw line and arrow",
+                );
+            } else {
+                assert_eq!(covariance.yaw_line, Matrix3::zeros());
+            }
         }
     }
 

@@ -225,10 +225,11 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
             gate_px: self.config.outlier_gate_sigma * sigma.max(self.config.pixel_sigma),
         };
         self.last_estimate = Some((refined.model, loss, self.base_observed()));
+        let geometry = refined.model.grasp_geometry();
         let uncertainty = refined
             .covariance
             .as_ref()
-            .map(EstimateUncertainty::from_covariance)
+            .map(|covariance| EstimateUncertainty::from_covariance(covariance, &geometry))
             .ok_or(CalibrationError::NumericalFailure {
                 stage: "covariance of the estimate",
             })?;
