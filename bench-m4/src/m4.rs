@@ -264,6 +264,8 @@ fn pick_tick(timer: &timer::DualTimer, model: &Puma560<f32>, q: &Joints<f32>) {
         camera_period_ms: 200,
         telemetry_period_ticks: 20,
         home_at_power_on: false,
+        grasp_capture_m: [0.005, 0.010],
+        grasp_capture_yaw_rad: 0.052,
     };
     let Ok(mut pick) = PickController::new(&config, PickSettings::default(), 1) else {
         hprintln!("  pick tick: configuration refused");

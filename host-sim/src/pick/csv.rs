@@ -116,7 +116,7 @@ pub(crate) fn calibration_csv(calibrations: &[CalibrationRecord]) -> String {
         let [px, py, pz] = report.part_rotating_m.map(f64::from);
         let sigma_base = Some(f64::from(report.sigma_base_m));
         let sigma_part = Some(f64::from(report.sigma_part_m));
-        let rows: [(&str, f64, Option<f64>, Option<f64>); 16] = [
+        let rows: [(&str, f64, Option<f64>, Option<f64>); 19] = [
             (
                 "camera_height_m",
                 f64::from(report.camera_height_m),
@@ -165,6 +165,24 @@ pub(crate) fn calibration_csv(calibrations: &[CalibrationRecord]) -> String {
             (
                 "folds_discarded",
                 f64::from(report.folds_discarded),
+                None,
+                None,
+            ),
+            (
+                "sigma_grasp_horizontal_m",
+                f64::from(report.sigma_grasp_horizontal_m),
+                None,
+                None,
+            ),
+            (
+                "sigma_grasp_vertical_m",
+                f64::from(report.sigma_grasp_vertical_m),
+                None,
+                None,
+            ),
+            (
+                "sigma_grasp_yaw_rad",
+                f64::from(report.sigma_grasp_yaw_rad),
                 None,
                 None,
             ),

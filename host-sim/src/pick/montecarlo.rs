@@ -55,6 +55,13 @@ pub struct TrialSummary {
     pub limit_part_in_base_mm: f64,
     pub final_part_yaw_deg: f64,
     pub limit_part_yaw_deg: f64,
+    /// The last estimate's own 1-sigma of the part in the base frame
+    /// (`CalibrationReport::sigma_grasp_*`), mm and degrees, and how many
+    /// estimates the pick made (preliminary included).
+    pub sigma_grasp_horizontal_mm: f64,
+    pub sigma_grasp_vertical_mm: f64,
+    pub sigma_grasp_yaw_deg: f64,
+    pub estimates: usize,
 }
 
 fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
@@ -64,6 +71,10 @@ fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
     let [ex, ey, ez] = estimate.unwrap_or([nan; 3]);
     let norm3 = |[x, y, z]: [f64; 3]| (x * x + y * y + z * z).sqrt();
     let disc = run.layout.disc_centre_base_m;
+    let last = run.calibrations.last().map(|c| &c.report);
+    let sigma = |read: fn(&shared::protocol::CalibrationReport) -> f32, scale: f64| {
+        last.map_or(nan, |report| f64::from(read(report)) * scale)
+    };
     TrialSummary {
         trial,
         seed,
@@ -91,6 +102,10 @@ fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
         limit_part_in_base_mm: nan,
         final_part_yaw_deg: nan,
         limit_part_yaw_deg: nan,
+        sigma_grasp_horizontal_mm: sigma(|r| r.sigma_grasp_horizontal_m, 1e3),
+        sigma_grasp_vertical_mm: sigma(|r| r.sigma_grasp_vertical_m, 1e3),
+        sigma_grasp_yaw_deg: sigma(|r| r.sigma_grasp_yaw_rad, 180.0 / std::f64::consts::PI),
+        estimates: run.calibrations.len(),
     }
 }
 
@@ -391,12 +406,12 @@ pub fn azimuth_table(summaries: &[TrialSummary]) -> String {
 /// Writes `trials.csv`: one line per trial.
 pub fn write_trials_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
     let mut text = String::from(
-        "trial,seed,result,success,estimate_error_x_mm,estimate_error_y_mm,estimate_error_z_mm,estimate_error_mm,estimate_yaw_error_deg,grasp_error_mm,grasp_yaw_error_deg,grasp_relative_speed_mm_s,calibrated_after_s,duration_s,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm,disc_azimuth_deg,disc_distance_m,disc_below_shoulder_m,final_part_in_base_mm,limit_part_in_base_mm,final_part_yaw_deg,limit_part_yaw_deg\n",
+        "trial,seed,result,success,estimate_error_x_mm,estimate_error_y_mm,estimate_error_z_mm,estimate_error_mm,estimate_yaw_error_deg,grasp_error_mm,grasp_yaw_error_deg,grasp_relative_speed_mm_s,calibrated_after_s,duration_s,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm,disc_azimuth_deg,disc_distance_m,disc_below_shoulder_m,final_part_in_base_mm,limit_part_in_base_mm,final_part_yaw_deg,limit_part_yaw_deg,sigma_grasp_horizontal_mm,sigma_grasp_vertical_mm,sigma_grasp_yaw_deg,estimates\n",
     );
     for s in summaries {
         let _ = writeln!(
             text,
-            "{},{},\"{}\",{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.4},{:.4},{:.2},{:.2},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}",
+            "{},{},\"{}\",{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.4},{:.4},{:.2},{:.2},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{}",
             s.trial,
             s.seed,
             s.result.replace('"', "'"),
@@ -420,7 +435,11 @@ pub fn write_trials_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
             s.final_part_in_base_mm,
             s.limit_part_in_base_mm,
             s.final_part_yaw_deg,
-            s.limit_part_yaw_deg
+            s.limit_part_yaw_deg,
+            s.sigma_grasp_horizontal_mm,
+            s.sigma_grasp_vertical_mm,
+            s.sigma_grasp_yaw_deg,
+            s.estimates
         );
     }
     fs::write(path, text).with_context(|| format!("writing {}", path.display()))

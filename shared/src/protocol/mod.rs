@@ -40,9 +40,11 @@ pub use messages::*;
 /// `FaultCause::HomingPotentiometer` and `FaultCause::HomingIndexNotSeen`.
 /// v6: `JobCosts::observation`, the worst per-frame update of the
 /// self-calibrator (which now folds what its stores have no room for).
+/// v7: `CalibrationReport::sigma_grasp_*`, the part's uncertainty in the
+/// base frame (what decides whether the pick shows its marks once more).
 /// The handshake
 /// refuses any other version with `UnsupportedVersion` (detail: this one).
-pub const PROTOCOL_VERSION: u16 = 6;
+pub const PROTOCOL_VERSION: u16 = 7;
 
 #[cfg(test)]
 mod tests;

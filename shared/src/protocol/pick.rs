@@ -49,6 +49,13 @@ pub struct CellConfig {
     /// before the pick moves. False: zero counts is already q = 0 (a board
     /// whose counters were homed before). Added in v5.
     pub home_at_power_on: bool,
+    /// How far off the part may be when the gripper closes and still be
+    /// grasped (the gripper's datasheet): horizontally and vertically, m.
+    /// The pick shows its marks again until its estimate is sure within
+    /// these. Added in v7.
+    pub grasp_capture_m: [f32; 2],
+    /// The same for the part's yaw, rad. Added in v7.
+    pub grasp_capture_yaw_rad: f32,
 }
 
 /// Where the pick stands.
@@ -237,4 +244,13 @@ pub struct CalibrationReport {
     /// Times folded frames disagreed with a later optimum (a wrong estimate
     /// adopted, a camera that creeps) and were discarded. v6.
     pub folds_discarded: u16,
+    /// 1-sigma of the part in the base frame (Eq 1), horizontally at the
+    /// worst disc angle, m: the part and the base both lean on the camera, so
+    /// this is what the grasp has to cover, not `sigma_part_m` and
+    /// `sigma_base_m` apart. v7.
+    pub sigma_grasp_horizontal_m: f32,
+    /// 1-sigma of the part's height in the base frame, m. v7.
+    pub sigma_grasp_vertical_m: f32,
+    /// 1-sigma of the part's yaw in the base frame, rad. v7.
+    pub sigma_grasp_yaw_rad: f32,
 }

@@ -406,10 +406,11 @@ fn the_documented_frame_limits_hold() {
 /// The v2 additions are appended: every v1 message keeps its encoding (the
 /// new variants' indices come after the old ones). v3 changed `CellConfig`
 /// only, v4 appended two fault causes, v5 the homing inputs, v6 the
-/// observation's cost in `JobCosts`, and the version says so.
+/// observation's cost in `JobCosts`, v7 the grasp's sigmas in
+/// `CalibrationReport`, and the version says so.
 #[test]
 fn v2_appends_the_trigger_event_and_keeps_v1_encodings() {
-    assert_eq!(PROTOCOL_VERSION, 6);
+    assert_eq!(PROTOCOL_VERSION, 7);
     // postcard writes the variant index first: RuntimeReport was the last of
     // v1 (index 13), TriggerEvent is 14.
     let event = wire_bytes(&Message::TriggerEvent(TriggerEvent {

@@ -170,6 +170,8 @@ impl World {
     pub fn cell_config(&self) -> CellConfig {
         let intrinsics = self.workcell.camera.intrinsics;
         let rate = self.experiment.robot.control_rate_hz;
+        // The gripper's capture, from its datasheet: the user knows it.
+        let gripper = &self.experiment.gripper;
         CellConfig {
             image_width_px: u16::try_from(intrinsics.width).unwrap_or(u16::MAX),
             image_height_px: u16::try_from(intrinsics.height).unwrap_or(u16::MAX),
@@ -186,6 +188,8 @@ impl World {
             camera_period_ms: self.experiment.camera.frame_period_ms,
             telemetry_period_ticks: (rate * TELEMETRY_PERIOD_S).round().clamp(1.0, 65_535.0) as u16,
             home_at_power_on: self.experiment.robot.homing.counters_start_anywhere,
+            grasp_capture_m: [gripper.horizontal_m as f32, gripper.vertical_m as f32],
+            grasp_capture_yaw_rad: gripper.yaw_deg.to_radians() as f32,
         }
     }
 

@@ -97,6 +97,14 @@ impl Cell {
             "drop_off_base_m",
         )?;
         check(config.camera_period_ms > 0, "camera_period_ms")?;
+        check(
+            config.grasp_capture_m.iter().all(|x| positive(*x)),
+            "grasp_capture_m",
+        )?;
+        check(
+            positive(config.grasp_capture_yaw_rad),
+            "grasp_capture_yaw_rad",
+        )?;
         let [x, y, z] = config.drop_off_base_m;
         Ok(Self {
             config: *config,

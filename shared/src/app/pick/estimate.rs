@@ -75,6 +75,9 @@ impl CellEstimate {
             points_gated: result.quality.outliers_rejected,
             frames_folded: 0,
             folds_discarded: 0,
+            sigma_grasp_horizontal_m: sigma.part_base_horizontal_m as f32,
+            sigma_grasp_vertical_m: sigma.part_base_vertical_m as f32,
+            sigma_grasp_yaw_rad: sigma.part_yaw_base_rad as f32,
         };
         Self {
             base_yaw: result.base_from_disc.yaw_rad as f32,
