@@ -88,7 +88,6 @@ fn the_fastest_disc_still_picks() {
 }
 
 #[test]
-#[ignore = "issue 17, not met yet (GraspMissed at 1 px with an 8-feature part), docs/pick.md"]
 fn every_condition_at_its_worst_at_once_still_picks() {
     assert_picked("all-worst");
 }

@@ -48,6 +48,8 @@ mod sightings;
 mod step;
 mod stop;
 mod supervisor;
+#[cfg(test)]
+mod sure_tests;
 mod telemetry;
 #[cfg(test)]
 mod trigger_due_tests;
@@ -82,7 +84,7 @@ use crate::calibration::SelfCalibrator;
 use crate::control::TaskSpaceController;
 use crate::fusion::{ConveyorFilter, ConveyorMeanSpeed, ConveyorState};
 use crate::planning::{ArcPoint, PlanError, TaskState};
-use crate::protocol::{ActuatorCommand, FaultCause, GripperCommand};
+use crate::protocol::{ActuatorCommand, CalibrationReport, FaultCause, GripperCommand};
 use crate::robot::{JointVector, Puma560};
 
 /// The controller's calibrator, the same in the firmware and in the simulator:
@@ -651,7 +653,7 @@ impl PickController {
             Some(JobOutcome::Estimate(Ok((estimate, poses)))) => {
                 self.estimate = Some(estimate);
                 self.estimate_serial = self.estimate_serial.wrapping_add(1);
-                let unsure = estimate.report.sigma_base_m > self.settings.confident_base_sigma_m;
+                let unsure = !self.sure_to_grasp(&estimate.report);
                 if preliminary {
                     self.poses = poses;
                     self.calibration_rounds = 1;
@@ -680,6 +682,29 @@ impl PickController {
             None if in_step > self.settings.estimate_timeout_s => self.raise(FaultCause::Timeout),
             None => {}
         }
+    }
+
+    /// Whether the estimate's own uncertainty of the part in the base frame
+    /// leaves it well inside the gripper's capture: a wrong part position is
+    /// a missed grasp, and more data is what shrinks it.
+    fn sure_to_grasp(&self, report: &CalibrationReport) -> bool {
+        let settings = &self.settings;
+        let config = &self.cell.config;
+        let [horizontal_m, vertical_m] = config.grasp_capture_m;
+        let within = |sigma: f32, capture: f32, sigmas: f32| sigma * sigmas <= capture;
+        within(
+            report.sigma_grasp_horizontal_m,
+            horizontal_m,
+            settings.sure_horizontal_sigmas,
+        ) && within(
+            report.sigma_grasp_vertical_m,
+            vertical_m,
+            settings.sure_axis_sigmas,
+        ) && within(
+            report.sigma_grasp_yaw_rad,
+            config.grasp_capture_yaw_rad,
+            settings.sure_axis_sigmas,
+        )
     }
 
     /// The speed the intercept predicts the part with: the conveyor's mean

@@ -103,10 +103,15 @@ pub struct PickSettings {
     pub max_part_sigma_m: f32,
     /// The base position's limit (see `max_part_sigma_m`).
     pub max_base_sigma_m: f32,
-    /// Above this 1-sigma of the base position the marks are shown once more
-    /// (at most `max_calibration_rounds` rounds in all) before the pick.
-    pub confident_base_sigma_m: f32,
-    /// The most calibration rounds (see `confident_base_sigma_m`).
+    /// The marks are shown once more (at most `max_calibration_rounds`
+    /// rounds in all) until the part in the base frame is this many sigmas
+    /// inside the gripper's horizontal capture (`CellConfig::grasp_capture_m`;
+    /// the sigma is the root of the horizontal covariance's trace, so a miss
+    /// beyond k of them has probability `exp(-k^2)`: 2.3 is 0.5 %).
+    pub sure_horizontal_sigmas: f32,
+    /// The same for the height and the yaw, one axis each (2.8 is 0.5 %).
+    pub sure_axis_sigmas: f32,
+    /// The most calibration rounds (see `sure_horizontal_sigmas`).
     pub max_calibration_rounds: u8,
     /// Faults: no paired camera frame for this long while vision is needed; the
     /// gripper this far from its reference.
@@ -229,8 +234,9 @@ impl Default for PickSettings {
             max_plan_lead_s: 2.0,
             max_part_sigma_m: 0.005,
             max_base_sigma_m: 0.03,
-            confident_base_sigma_m: 0.003,
-            max_calibration_rounds: 1,
+            sure_horizontal_sigmas: 2.3,
+            sure_axis_sigmas: 2.8,
+            max_calibration_rounds: 4,
             vision_stale_s: 2.0,
             tracking_error_limit_m: 0.03,
             stall_limit_s: 0.02,
