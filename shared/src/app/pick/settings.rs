@@ -107,9 +107,9 @@ pub struct PickSettings {
     /// rounds in all) until the part in the base frame is this many sigmas
     /// inside the gripper's horizontal capture (`CellConfig::grasp_capture_m`;
     /// the sigma is the root of the horizontal covariance's trace, so a miss
-    /// beyond k of them has probability `exp(-k^2)`: 2.3 is 0.5 %).
+    /// beyond k of them has probability `exp(-k^2)`: 2.5 is 0.2 %).
     pub sure_horizontal_sigmas: f32,
-    /// The same for the height and the yaw, one axis each (2.8 is 0.5 %).
+    /// The same for the height and the yaw, one axis each (3.0 is 0.3 %).
     pub sure_axis_sigmas: f32,
     /// The most calibration rounds (see `sure_horizontal_sigmas`).
     pub max_calibration_rounds: u8,
@@ -234,8 +234,8 @@ impl Default for PickSettings {
             max_plan_lead_s: 2.0,
             max_part_sigma_m: 0.005,
             max_base_sigma_m: 0.03,
-            sure_horizontal_sigmas: 2.3,
-            sure_axis_sigmas: 2.8,
+            sure_horizontal_sigmas: 2.5,
+            sure_axis_sigmas: 3.0,
             max_calibration_rounds: 4,
             vision_stale_s: 2.0,
             tracking_error_limit_m: 0.03,
