@@ -186,7 +186,9 @@ pub struct PickTelemetry {
     pub part_yaw_base_rad: f32,
     /// The part's velocity in the base frame, m/s (0 before calibration).
     pub part_velocity_base_m_s: [f32; 3],
-    /// 1-sigma of the part's position from the estimator.
+    /// 1-sigma of the part's position in the base frame from the estimator
+    /// (the root of `sigma_grasp_horizontal_m^2 + sigma_grasp_vertical_m^2`;
+    /// v7, before it the rotating frame's, which left out the base).
     pub part_sigma_m: f32,
     /// The grasp point (tool centre) measured through the joint encoders, and where it is sent.
     pub tool_base_m: [f32; 3],

@@ -64,7 +64,12 @@ impl TelemetryInputs<'_> {
             part_yaw_base_rad: part.map_or(0.0, |p| p.yaw),
             part_velocity_base_m_s: part
                 .map_or([0.0; 3], |p| [p.velocity.x, p.velocity.y, p.velocity.z]),
-            part_sigma_m: self.estimate.map_or(0.0, |e| e.report.sigma_part_m),
+            part_sigma_m: self.estimate.map_or(0.0, |e| {
+                libm::hypotf(
+                    e.report.sigma_grasp_horizontal_m,
+                    e.report.sigma_grasp_vertical_m,
+                )
+            }),
             tool_base_m: [
                 self.tool_measured.x,
                 self.tool_measured.y,
