@@ -25,5 +25,7 @@ pub mod log;
 pub mod pick;
 pub mod recording;
 pub mod scenario;
+pub mod camera_recording;
+pub mod front_end;
 pub mod vision_check;
 pub mod world;

@@ -126,7 +126,12 @@ impl Renderer {
         let disc_marks = scene
             .marks
             .iter()
-            .filter(|m| matches!(m.kind, MarkKind::DiscCentre | MarkKind::Reference));
+            .filter(|m| {
+                matches!(
+                    m.kind,
+                    MarkKind::DiscCentre | MarkKind::Reference | MarkKind::Distractor(_)
+                )
+            });
         for mark in disc_marks {
             self.paint_mark(mark, mark_albedo, MARK_DEPTH_BIAS_M);
         }
