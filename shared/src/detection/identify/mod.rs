@@ -76,6 +76,13 @@ const STILL_PX: f64 = 0.4;
 const MIN_TURNING_PX: f64 = 4.0;
 /// A mark's measured diameter may be this factor off its header's.
 const SIZE_TOLERANCE: f64 = 1.3;
+/// A feature's diameter from its flux may be this factor off (the light
+/// varies by some 20 % across the image: 10 % in diameter).
+const FLUX_SIZE_TOLERANCE: f64 = 1.25;
+/// Observations of each feature track before the features' order is stored.
+const SETTLED_HITS: u32 = 15;
+/// A followed blob's flux may change by this factor from frame to frame.
+const FLUX_JUMP: f64 = 1.5;
 /// Turning things lie on the disc: within this factor of its radius.
 const DISC_MARGIN: f64 = 1.1;
 /// The disc centre's mark lies within this share of the reference path's
@@ -253,6 +260,8 @@ pub struct Identifier {
     features_rotating: Vec<[f64; 2], MAX_PART_FEATURES>,
     projection: BaseProjection,
     pairs: Vec<([[f64; 3]; 2], [PixelPoint; 2]), MAX_PAIRS>,
+    /// The reference mark's mean flux, the yardstick of the other marks' sizes.
+    reference_flux: Option<f64>,
 }
 
 impl Identifier {
@@ -317,6 +326,7 @@ impl Identifier {
             features_rotating: Vec::new(),
             projection: BaseProjection::new([lens.cx, lens.cy], lens.f_px),
             pairs: Vec::new(),
+            reference_flux: None,
         }
     }
 
@@ -355,13 +365,15 @@ impl Identifier {
             return report;
         }
         // 1. Pinhole pixels.
-        let mut points: Vec<Option<(PixelPoint, f64)>, MAX_BLOBS> = Vec::new();
+        let mut points: Vec<Option<(PixelPoint, f64, f64)>, MAX_BLOBS> = Vec::new();
         for blob in blobs.iter().take(MAX_BLOBS) {
             let pixel = self
                 .settings
                 .lens
                 .undistort([f64::from(blob.x_px), f64::from(blob.y_px)]);
-            let _ = points.push(pixel.map(|p| (p, f64::from(blob.area_px))));
+            let area = f64::from(blob.area_px);
+            let flux = area * f64::from(blob.mean_contrast);
+            let _ = points.push(pixel.map(|p| (p, area, flux)));
         }
         // 2. Association, unique both ways.
         let ambiguous = self.associate(theta, &points, &mut report);
@@ -377,7 +389,7 @@ impl Identifier {
                 if matches!(label, MarkLabel::Effector(_)) {
                     continue;
                 }
-                if let Some(Some((pixel, _))) = points.get(blob) {
+                if let Some(Some((pixel, _, _))) = points.get(blob) {
                     let _ = out.push(LabelledPoint {
                         label,
                         pixel: *pixel,
@@ -416,7 +428,7 @@ impl Identifier {
     fn associate(
         &mut self,
         theta: f64,
-        points: &[Option<(PixelPoint, f64)>],
+        points: &[Option<(PixelPoint, f64, f64)>],
         report: &mut IdentifyReport,
     ) -> Vec<bool, MAX_BLOBS> {
         let gate = self.settings.gate_px;
@@ -448,7 +460,7 @@ impl Identifier {
             let mut found = None;
             let mut count = 0;
             for (i, point) in points.iter().enumerate() {
-                if let Some((p, _)) = point {
+                if let Some((p, _, _)) = point {
                     let d = libm::hypot(p[0] - predicted[0], p[1] - predicted[1]);
                     if d <= reach {
                         count += 1;
@@ -470,9 +482,23 @@ impl Identifier {
         }
         for (followed, chosen) in self.tracks.iter_mut().zip(choice.iter()) {
             let taken = chosen.filter(|&i| claims.get(i).copied() == Some(1));
+            // A followed mark keeps its brightness: a blob sending much more
+            // or less light is another mark in its place (the gripper's over
+            // a feature) or the mark half hidden; it is not taken.
+            let steady = |flux: f64| {
+                let track = &followed.track;
+                track.hits < MIN_HITS || Self::in_band(flux, track.mean_flux(), FLUX_JUMP)
+            };
+            let taken = taken.filter(|&i| {
+                points
+                    .get(i)
+                    .copied()
+                    .flatten()
+                    .is_some_and(|(_, _, flux)| steady(flux))
+            });
             match taken.and_then(|i| points.get(i).copied().flatten().map(|p| (i, p))) {
-                Some((i, (p, area))) => {
-                    followed.track.update(theta, p, area);
+                Some((i, (p, area, flux))) => {
+                    followed.track.update(theta, p, area, flux);
                     followed.blob = Some(i);
                     // A disc label holds only while the track turns with the disc.
                     if matches!(
@@ -494,9 +520,9 @@ impl Identifier {
         self.tracks
             .retain(|f| f.track.misses <= if f.track.hits < 2 { 0 } else { MAX_MISSES });
         for (i, point) in points.iter().enumerate() {
-            if let (Some((p, area)), Some(0)) = (point, claims.get(i).copied()) {
+            if let (Some((p, area, flux)), Some(0)) = (point, claims.get(i).copied()) {
                 let new = Followed {
-                    track: Track::start(theta, *p, *area),
+                    track: Track::start(theta, *p, *area, *flux),
                     label: None,
                     on_arm: false,
                     blob: Some(i),
@@ -624,11 +650,16 @@ impl Identifier {
                 if radius_m > self.settings.disc_radius_m * DISC_MARGIN {
                     inside = false;
                 }
-                if Self::in_band(
-                    disc.diameter_m(other.track.mean_area_px()),
-                    d.part_feature_m,
-                    SIZE_TOLERANCE,
-                ) {
+                // Sizes by flux against the candidate's (see `find_features`).
+                let flux_ratio = other.track.mean_flux() / candidate.track.mean_flux().max(1e-9);
+                let by_flux = d.reference_m * libm::sqrt(flux_ratio.max(0.0));
+                if Self::in_band(by_flux, d.part_feature_m, FLUX_SIZE_TOLERANCE)
+                    && Self::in_band(
+                        disc.diameter_m(other.track.mean_area_px()),
+                        d.part_feature_m,
+                        SIZE_TOLERANCE,
+                    )
+                {
                     features += 1;
                 }
             }
@@ -700,6 +731,14 @@ impl Identifier {
         };
         let l = self.settings.reference_radius_m;
         let expected = self.settings.diameters.part_feature_m;
+        let reference_flux = self
+            .tracks
+            .iter()
+            .find(|f| f.label == Some(MarkLabel::Reference))
+            .map(|f| f.track.mean_flux())
+            .filter(|&x| x > 0.0)
+            .or(self.reference_flux);
+        self.reference_flux = reference_flux;
         let mut candidates: Vec<(usize, [f64; 2]), MAX_TRACKS> = Vec::new();
         for (i, f) in self.tracks.iter().enumerate() {
             if f.label.is_some() || f.blob.is_none() || !Self::turning(f) {
@@ -707,6 +746,15 @@ impl Identifier {
             }
             if !Self::in_band(disc.diameter_m(f.track.mean_area_px()), expected, SIZE_TOLERANCE) {
                 continue;
+            }
+            // The light it sends against the reference mark's: blur spreads
+            // a small mark's image but keeps its flux.
+            if let Some(reference_flux) = reference_flux {
+                let d = self.settings.diameters.reference_m
+                    * libm::sqrt((f.track.mean_flux() / reference_flux).max(0.0));
+                if !Self::in_band(d, expected, FLUX_SIZE_TOLERANCE) {
+                    continue;
+                }
             }
             if let Some(p) = disc.rotating(f.track.latest.1, theta, l) {
                 if libm::hypot(p[0], p[1]) <= self.settings.disc_radius_m * DISC_MARGIN {
@@ -720,7 +768,14 @@ impl Identifier {
                 .tracks
                 .iter()
                 .any(|f| matches!(f.label, Some(MarkLabel::PartFeature(_))));
-            if candidates.len() != count || !unlabelled_features {
+            // The order is stored once: only from tracks followed long
+            // enough for their sizes to be well measured.
+            let settled = candidates.iter().all(|(i, _)| {
+                self.tracks
+                    .get(*i)
+                    .is_some_and(|f| f.track.hits >= SETTLED_HITS)
+            });
+            if candidates.len() != count || !unlabelled_features || !settled {
                 return;
             }
             // A fixed order: by angle about the disc centre, from the reference.
@@ -762,7 +817,7 @@ impl Identifier {
 
     fn find_effector(
         &mut self,
-        points: &[Option<(PixelPoint, f64)>],
+        points: &[Option<(PixelPoint, f64, f64)>],
         ambiguous: &[bool],
         effector_base_m: &[[f64; 3]; 2],
     ) -> [Option<LabelledPoint>; 2] {
@@ -781,7 +836,7 @@ impl Identifier {
                 };
                 let mut near: Vec<usize, MAX_BLOBS> = Vec::new();
                 for (i, point) in points.iter().enumerate() {
-                    if let Some((q, _)) = point {
+                    if let Some((q, _, _)) = point {
                         let close = predicted.iter().flatten().any(|other| {
                             !core::ptr::eq(other, p)
                                 && libm::hypot(q[0] - other[0], q[1] - other[1]) <= EFFECTOR_GATE_PX
@@ -798,7 +853,7 @@ impl Identifier {
                     if ambiguous.get(*i).copied().unwrap_or(true) {
                         continue;
                     }
-                    if let Some(Some((q, _))) = points.get(*i) {
+                    if let Some(Some((q, _, _))) = points.get(*i) {
                         *slot = Some(LabelledPoint {
                             label: MarkLabel::Effector(k as u8),
                             pixel: *q,
@@ -843,7 +898,8 @@ impl Identifier {
             }
         }
         if let [i, j] = free.as_slice() {
-            let (Some(Some((p, area_p))), Some(Some((q, area_q)))) = (points.get(*i), points.get(*j))
+            let (Some(Some((p, area_p, _))), Some(Some((q, area_q, _)))) =
+                (points.get(*i), points.get(*j))
             else {
                 return found;
             };

@@ -143,6 +143,9 @@ pub struct Track {
     pub misses: u32,
     /// Sum of the blobs' areas, px (for the mark's size).
     pub area_sum: f64,
+    /// Sum of the blobs' fluxes (area times mean contrast, grey px): the
+    /// light a mark sends, proportional to its true area however blurred.
+    pub flux_sum: f64,
     /// The path's fit over the recent arc (prediction, consistency).
     pub fit: ArcFit,
     /// The path's fit over most of a turn (its centre and size).
@@ -151,7 +154,7 @@ pub struct Track {
 
 impl Track {
     /// A track started by one observation.
-    pub fn start(theta: f64, p: PixelPoint, area_px: f64) -> Self {
+    pub fn start(theta: f64, p: PixelPoint, area_px: f64, flux: f64) -> Self {
         let mut fit = ArcFit::new(RECENT_FORGETTING);
         fit.add(theta, p);
         let mut whole = ArcFit::new(WHOLE_FORGETTING);
@@ -162,13 +165,15 @@ impl Track {
             hits: 1,
             misses: 0,
             area_sum: area_px,
+            flux_sum: flux,
             fit,
             whole,
         }
     }
 
     /// Takes the next observation.
-    pub fn update(&mut self, theta: f64, p: PixelPoint, area_px: f64) {
+    pub fn update(&mut self, theta: f64, p: PixelPoint, area_px: f64, flux: f64) {
+        self.flux_sum += flux;
         self.previous = Some(self.latest);
         self.latest = (theta, p);
         self.hits = self.hits.saturating_add(1);
@@ -176,6 +181,11 @@ impl Track {
         self.area_sum += area_px;
         self.fit.add(theta, p);
         self.whole.add(theta, p);
+    }
+
+    /// Mean blob flux, grey px.
+    pub fn mean_flux(&self) -> f64 {
+        self.flux_sum / f64::from(self.hits.max(1))
     }
 
     /// Mean blob area, px.
