@@ -17,7 +17,10 @@ pub enum RecordingError {
     /// A frame's image: missing, undecodable or of the wrong size.
     Image { file: String, problem: String },
     /// A file that cannot be opened, read or written.
-    Io { file: String, source: std::io::Error },
+    Io {
+        file: String,
+        source: std::io::Error,
+    },
 }
 
 impl RecordingError {

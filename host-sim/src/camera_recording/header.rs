@@ -84,9 +84,9 @@ impl<'a> Object<'a> {
 
     fn number(&self, key: &str) -> Result<f64, RecordingError> {
         let value = self.value(key)?;
-        let number = value
-            .as_f64()
-            .ok_or_else(|| RecordingError::header(&self.key(key), format!("not a number: {value}")))?;
+        let number = value.as_f64().ok_or_else(|| {
+            RecordingError::header(&self.key(key), format!("not a number: {value}"))
+        })?;
         if number.is_finite() {
             Ok(number)
         } else {
@@ -107,14 +107,20 @@ impl<'a> Object<'a> {
         if number > 0.0 {
             Ok(number)
         } else {
-            Err(RecordingError::header(&self.key(key), format!("must be positive, got {number}")))
+            Err(RecordingError::header(
+                &self.key(key),
+                format!("must be positive, got {number}"),
+            ))
         }
     }
 
     fn unsigned(&self, key: &str) -> Result<u64, RecordingError> {
         let value = self.value(key)?;
         value.as_u64().ok_or_else(|| {
-            RecordingError::header(&self.key(key), format!("not a non-negative integer: {value}"))
+            RecordingError::header(
+                &self.key(key),
+                format!("not a non-negative integer: {value}"),
+            )
         })
     }
 
@@ -184,7 +190,10 @@ impl RecordingHeader {
             .ok()
             .filter(|n| (2..=MAX_PART_FEATURES).contains(n))
             .ok_or_else(|| {
-                RecordingError::header("part_feature_count", "must be from 2 to 8 (MAX_PART_FEATURES)")
+                RecordingError::header(
+                    "part_feature_count",
+                    "must be from 2 to 8 (MAX_PART_FEATURES)",
+                )
             })?;
         let marks = root.object("marks")?;
         let effector_list = marks
@@ -221,7 +230,8 @@ impl RecordingHeader {
 
     /// The header as the text of `recording.json` (one line).
     pub fn to_json(&self) -> String {
-        let mark = |m: &MarkSpec| json!({"diameter_m": m.diameter_m, "polarity": m.polarity.name()});
+        let mark =
+            |m: &MarkSpec| json!({"diameter_m": m.diameter_m, "polarity": m.polarity.name()});
         json!({
             "type": "recording",
             "version": RECORDING_VERSION,

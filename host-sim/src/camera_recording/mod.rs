@@ -67,11 +67,13 @@ impl Recording {
         &self,
         skip_bad_images: bool,
     ) -> impl Iterator<Item = Result<(&FrameRow, Vec<u8>), RecordingError>> + '_ {
-        self.rows.iter().filter_map(move |row| match self.image(row) {
-            Ok(pixels) => Some(Ok((row, pixels))),
-            Err(RecordingError::Image { .. }) if skip_bad_images => None,
-            Err(e) => Some(Err(e)),
-        })
+        self.rows
+            .iter()
+            .filter_map(move |row| match self.image(row) {
+                Ok(pixels) => Some(Ok((row, pixels))),
+                Err(RecordingError::Image { .. }) if skip_bad_images => None,
+                Err(e) => Some(Err(e)),
+            })
     }
 }
 
@@ -110,7 +112,11 @@ impl RecordingWriter {
         // The row must read back: increasing ids, finite numbers, first angle 0.
         row.line = self.last.as_ref().map_or(2, |last| last.line + 1);
         if row.effector_base_m.len() != self.header.effector.len() {
-            return Err(RecordingError::row(row.line, "e0_base_x_m", "wrong number of effector marks"));
+            return Err(RecordingError::row(
+                row.line,
+                "e0_base_x_m",
+                "wrong number of effector marks",
+            ));
         }
         rows::check_follows(self.last.as_ref(), &row)?;
         let expected = self.header.camera.width as usize * self.header.camera.height as usize;

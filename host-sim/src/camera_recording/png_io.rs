@@ -9,8 +9,14 @@ use std::path::Path;
 use super::error::RecordingError;
 
 /// Reads an 8-bit grayscale PNG of `width` x `height`, rows top to bottom.
-pub fn read_gray_png(path: &Path, name: &str, width: u32, height: u32) -> Result<Vec<u8>, RecordingError> {
-    let file = File::open(path).map_err(|e| RecordingError::image(name, format!("cannot open: {e}")))?;
+pub fn read_gray_png(
+    path: &Path,
+    name: &str,
+    width: u32,
+    height: u32,
+) -> Result<Vec<u8>, RecordingError> {
+    let file =
+        File::open(path).map_err(|e| RecordingError::image(name, format!("cannot open: {e}")))?;
     let mut decoder = png::Decoder::new(std::io::BufReader::new(file));
     decoder.set_transformations(png::Transformations::IDENTITY);
     let mut reader = decoder
@@ -48,7 +54,12 @@ pub fn read_gray_png(path: &Path, name: &str, width: u32, height: u32) -> Result
 }
 
 /// Writes `pixels` (rows top to bottom) as an 8-bit grayscale PNG.
-pub fn write_gray_png(path: &Path, width: u32, height: u32, pixels: &[u8]) -> Result<(), RecordingError> {
+pub fn write_gray_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[u8],
+) -> Result<(), RecordingError> {
     let file = File::create(path).map_err(RecordingError::io(path))?;
     let mut encoder = png::Encoder::new(BufWriter::new(file), width, height);
     encoder.set_color(png::ColorType::Grayscale);

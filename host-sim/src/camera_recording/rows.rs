@@ -24,10 +24,15 @@ pub struct FrameRow {
 
 /// The column names of a recording with `effector_marks` gripper marks.
 pub fn column_names(effector_marks: usize) -> Vec<String> {
-    let mut names: Vec<String> = ["trigger_id", "capture_time_us", "conveyor_angle_rad", "image"]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
+    let mut names: Vec<String> = [
+        "trigger_id",
+        "capture_time_us",
+        "conveyor_angle_rad",
+        "image",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
     for i in 0..effector_marks {
         for axis in ["x", "y", "z"] {
             names.push(format!("e{i}_base_{axis}_m"));
@@ -38,7 +43,10 @@ pub fn column_names(effector_marks: usize) -> Vec<String> {
 
 /// Parses the whole of `frames.csv`.
 pub fn parse_rows(text: &str, effector_marks: usize) -> Result<Vec<FrameRow>, RecordingError> {
-    let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim_end_matches('\r')));
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim_end_matches('\r')));
     let (_, header) = lines
         .next()
         .ok_or_else(|| RecordingError::row(1, "(header)", "the file is empty"))?;
@@ -69,15 +77,27 @@ pub fn parse_rows(text: &str, effector_marks: usize) -> Result<Vec<FrameRow>, Re
         let integer = |k: usize| -> Result<u64, RecordingError> {
             let f = field(k)?;
             f.parse::<u64>().map_err(|_| {
-                RecordingError::row(line, &wanted[k], format!("not a non-negative integer: {f:?}"))
+                RecordingError::row(
+                    line,
+                    &wanted[k],
+                    format!("not a non-negative integer: {f:?}"),
+                )
             })
         };
         let number = |k: usize| -> Result<f64, RecordingError> {
             let f = field(k)?;
             match f.parse::<f64>() {
                 Ok(x) if x.is_finite() => Ok(x),
-                Ok(_) => Err(RecordingError::row(line, &wanted[k], format!("not finite: {f:?}"))),
-                Err(_) => Err(RecordingError::row(line, &wanted[k], format!("not a number: {f:?}"))),
+                Ok(_) => Err(RecordingError::row(
+                    line,
+                    &wanted[k],
+                    format!("not finite: {f:?}"),
+                )),
+                Err(_) => Err(RecordingError::row(
+                    line,
+                    &wanted[k],
+                    format!("not a number: {f:?}"),
+                )),
             }
         };
         let row = FrameRow {
@@ -102,12 +122,20 @@ pub fn parse_rows(text: &str, effector_marks: usize) -> Result<Vec<FrameRow>, Re
 pub fn check_follows(previous: Option<&FrameRow>, row: &FrameRow) -> Result<(), RecordingError> {
     let line = row.line;
     if !row.conveyor_angle_rad.is_finite() {
-        return Err(RecordingError::row(line, "conveyor_angle_rad", "not finite"));
+        return Err(RecordingError::row(
+            line,
+            "conveyor_angle_rad",
+            "not finite",
+        ));
     }
     for (i, p) in row.effector_base_m.iter().enumerate() {
         for (axis, x) in ["x", "y", "z"].iter().zip(p) {
             if !x.is_finite() {
-                return Err(RecordingError::row(line, &format!("e{i}_base_{axis}_m"), "not finite"));
+                return Err(RecordingError::row(
+                    line,
+                    &format!("e{i}_base_{axis}_m"),
+                    "not finite",
+                ));
             }
         }
     }
@@ -116,7 +144,10 @@ pub fn check_follows(previous: Option<&FrameRow>, row: &FrameRow) -> Result<(), 
             return Err(RecordingError::row(
                 line,
                 "conveyor_angle_rad",
-                format!("must be exactly 0 at the first frame, got {}", row.conveyor_angle_rad),
+                format!(
+                    "must be exactly 0 at the first frame, got {}",
+                    row.conveyor_angle_rad
+                ),
             ))
         }
         Some(previous) if row.trigger_id <= previous.trigger_id => {

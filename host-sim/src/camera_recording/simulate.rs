@@ -148,12 +148,10 @@ pub fn record_pick(
     let exposure_s = settings.exposure_ms / 1000.0;
     let mut renderer: Option<Renderer> = None;
     let mut writer: Option<(RecordingWriter, LogWriter<BufWriter<File>>)> = None;
-    let mut truth = BufWriter::new(
-        File::create(folder.join(TRUTH_FILE)).or_else(|_| {
-            std::fs::create_dir_all(folder)?;
-            File::create(folder.join(TRUTH_FILE))
-        })?,
-    );
+    let mut truth = BufWriter::new(File::create(folder.join(TRUTH_FILE)).or_else(|_| {
+        std::fs::create_dir_all(folder)?;
+        File::create(folder.join(TRUTH_FILE))
+    })?);
     let mut noise_rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7ec0_4d1e);
     let mut frame = GrayFrame {
         width: 0,
@@ -211,7 +209,9 @@ pub fn record_pick(
             let recording = RecordingWriter::create(folder, &header_of(world, renderer))?;
             let log_path = folder.join(IDEAL_LOG_FILE);
             let log = LogWriter::new(
-                BufWriter::new(File::create(&log_path).with_context(|| log_path.display().to_string())?),
+                BufWriter::new(
+                    File::create(&log_path).with_context(|| log_path.display().to_string())?,
+                ),
                 &world.workcell().header(),
             )?;
             writer = Some((recording, log));
@@ -231,7 +231,8 @@ pub fn record_pick(
             part_px: None,
             effector: None,
         };
-        let mut part: Vec<Option<PixelPoint>> = vec![None; world.workcell().features_rotating.len()];
+        let mut part: Vec<Option<PixelPoint>> =
+            vec![None; world.workcell().features_rotating.len()];
         let mut effector: [Option<PixelPoint>; 2] = [None; 2];
         for (image, mark) in marks.iter().zip(&scene.marks) {
             let (kind, index) = kind_name(image.kind);
@@ -277,7 +278,13 @@ pub fn record_pick(
             });
         }
         log.write_frame(&ideal)?;
-        serde_json::to_writer(&mut truth, &TrueFrame { trigger_id, marks: true_marks })?;
+        serde_json::to_writer(
+            &mut truth,
+            &TrueFrame {
+                trigger_id,
+                marks: true_marks,
+            },
+        )?;
         truth.write_all(b"\n")?;
         recording.push(row, &frame.pixels)?;
         frames += 1;
@@ -303,6 +310,8 @@ pub fn read_truth(folder: &Path) -> Result<Vec<TrueFrame>> {
     text.lines()
         .filter(|l| !l.trim().is_empty())
         .enumerate()
-        .map(|(i, l)| serde_json::from_str(l).with_context(|| format!("{} line {}", path.display(), i + 1)))
+        .map(|(i, l)| {
+            serde_json::from_str(l).with_context(|| format!("{} line {}", path.display(), i + 1))
+        })
         .collect()
 }

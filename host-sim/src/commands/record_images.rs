@@ -46,7 +46,13 @@ pub fn run(args: &Args) -> Result<()> {
         experiment.image.validate()?;
     }
     let seed = trial_seed(args.seed, args.trial);
-    let recorded = record_pick(&experiment, seed, &args.out, args.frames, args.stride.max(1))?;
+    let recorded = record_pick(
+        &experiment,
+        seed,
+        &args.out,
+        args.frames,
+        args.stride.max(1),
+    )?;
     eprintln!(
         "{} frames of the {} pick (seed {seed}) in {}",
         recorded.frames,

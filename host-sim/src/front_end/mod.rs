@@ -14,7 +14,7 @@ use anyhow::{Context, Result};
 use heapless::Vec as HVec;
 use shared::detection::identify::lens::LensModel;
 use shared::detection::identify::{
-    IdentifySettings, Identifier, LabelledPoint, MarkDiameters, MarkLabel, MAX_LABELS,
+    Identifier, IdentifySettings, LabelledPoint, MarkDiameters, MarkLabel, MAX_LABELS,
 };
 use shared::detection::{Blob, Detector, DetectorSettings, GrayImage, MAX_BLOBS};
 use shared::observation::{EffectorSighting, LogHeader, ObservationFrame, LOG_VERSION};
@@ -54,7 +54,12 @@ pub fn identify_settings(header: &RecordingHeader) -> Result<IdentifySettings> {
         ("marks.part_feature", header.part_feature.polarity),
     ]
     .into_iter()
-    .chain(header.effector.iter().map(|m| ("marks.effector", m.polarity)));
+    .chain(
+        header
+            .effector
+            .iter()
+            .map(|m| ("marks.effector", m.polarity)),
+    );
     for (key, polarity) in bright {
         if polarity != Polarity::Bright {
             anyhow::bail!(
@@ -102,7 +107,12 @@ fn log_frame(
     effector_base_m: &[[f64; 3]; 2],
 ) -> ObservationFrame {
     let inside = |p: &LabelledPoint| header.camera.contains(p.pixel);
-    let of = |label: MarkLabel| points.iter().find(|p| p.label == label && inside(p)).map(|p| p.pixel);
+    let of = |label: MarkLabel| {
+        points
+            .iter()
+            .find(|p| p.label == label && inside(p))
+            .map(|p| p.pixel)
+    };
     let part: Option<heapless::Vec<[f64; 2], { shared::observation::MAX_PART_FEATURES }>> = (0
         ..header.part_feature_count)
         .map(|k| of(MarkLabel::PartFeature(k as u8)))
@@ -173,14 +183,37 @@ pub fn run(recording: &Recording, skip_bad_images: bool) -> Result<FrontEndRun> 
             [a, b, ..] => [*a, *b],
             _ => anyhow::bail!("frames.csv line {}: two effector marks expected", row.line),
         };
-        let report = identifier.identify(row.conveyor_angle_rad, &blobs, &effector_base_m, &mut points);
+        let report = identifier.identify(
+            row.conveyor_angle_rad,
+            &blobs,
+            &effector_base_m,
+            &mut points,
+        );
         run.ambiguous += u64::from(report.ambiguous);
         if std::env::var_os("FRONT_END_DEBUG").is_some() {
-            eprintln!("frame {} theta {:.3} blobs {} labelled {} disc {:?} projection {:?}", row.trigger_id, row.conveyor_angle_rad, blobs.len(), points.len(), identifier.disc_image(), identifier.projection_state());
+            eprintln!(
+                "frame {} theta {:.3} blobs {} labelled {} disc {:?} projection {:?}",
+                row.trigger_id,
+                row.conveyor_angle_rad,
+                blobs.len(),
+                points.len(),
+                identifier.disc_image(),
+                identifier.projection_state()
+            );
             for (t, label) in identifier.tracks() {
                 let m = t.fit.model(0.25);
                 let w = t.whole.model(0.8);
-                eprintln!("  {:?} hits {} miss {} at ({:.1},{:.1}) area {:.1} recent {:?} whole {:?}", label, t.hits, t.misses, t.latest.1[0], t.latest.1[1], t.mean_area_px(), m.map(|m| (m.rms_px, m.radius_px())), w.map(|m| (m.rms_px, m.radius_px(), m.centre_px)));
+                eprintln!(
+                    "  {:?} hits {} miss {} at ({:.1},{:.1}) area {:.1} recent {:?} whole {:?}",
+                    label,
+                    t.hits,
+                    t.misses,
+                    t.latest.1[0],
+                    t.latest.1[1],
+                    t.mean_area_px(),
+                    m.map(|m| (m.rms_px, m.radius_px())),
+                    w.map(|m| (m.rms_px, m.radius_px(), m.centre_px))
+                );
             }
         }
         let t_s = row.capture_time_us as f64 * 1e-6;
@@ -199,3 +232,6 @@ pub fn run(recording: &Recording, skip_bad_images: bool) -> Result<FrontEndRun> 
     }
     Ok(run)
 }
+
+#[cfg(test)]
+mod tests;

@@ -65,7 +65,9 @@ pub fn score(labels: &[FrameLabels], truth: &[TrueFrame]) -> LabelScore {
     // Feature order: each feature label's most frequent true feature.
     let mut votes: BTreeMap<(usize, usize), usize> = BTreeMap::new();
     for frame in labels {
-        let Some(t) = by_id.get(&frame.trigger_id) else { continue };
+        let Some(t) = by_id.get(&frame.trigger_id) else {
+            continue;
+        };
         for p in &frame.points {
             if let ("part_feature", k) = class(p.label) {
                 if let Some(m) = nearest(t, p.pixel).filter(|m| m.kind == "part_feature") {
@@ -88,9 +90,15 @@ pub fn score(labels: &[FrameLabels], truth: &[TrueFrame]) -> LabelScore {
     }
     let mut score = LabelScore::default();
     for frame in labels {
-        let Some(t) = by_id.get(&frame.trigger_id) else { continue };
+        let Some(t) = by_id.get(&frame.trigger_id) else {
+            continue;
+        };
         score.frames += 1;
-        for m in t.marks.iter().filter(|m| m.visible && m.kind != "distractor") {
+        for m in t
+            .marks
+            .iter()
+            .filter(|m| m.visible && m.kind != "distractor")
+        {
             *score.visible.entry(m.kind.clone()).or_default() += 1;
             let labelled = frame.points.iter().any(|p| {
                 let (kind, k) = class(p.label);
@@ -113,7 +121,8 @@ pub fn score(labels: &[FrameLabels], truth: &[TrueFrame]) -> LabelScore {
             } else {
                 Some(k)
             };
-            let right = nearest(t, p.pixel).is_some_and(|m| m.kind == kind && Some(m.index) == index);
+            let right =
+                nearest(t, p.pixel).is_some_and(|m| m.kind == kind && Some(m.index) == index);
             let off = !right
                 && nearest_within(t, p.pixel, OFF_PX)
                     .is_some_and(|m| m.kind == kind && Some(m.index) == index);

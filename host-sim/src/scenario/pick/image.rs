@@ -132,7 +132,10 @@ impl ImageSettings {
             ("vignetting", self.vignetting),
         ];
         if self.distractors > 32 {
-            bail!("image.distractors = {} is out of range: at most 32", self.distractors);
+            bail!(
+                "image.distractors = {} is out of range: at most 32",
+                self.distractors
+            );
         }
         for (field, value) in unit {
             if !(value.is_finite() && (0.0..=1.0).contains(&value)) {

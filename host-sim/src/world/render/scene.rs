@@ -269,7 +269,10 @@ pub fn distractors_rotating(settings: &ImageSettings) -> Vec<(Vector3<f64>, f64)
             } else {
                 settings.distractor_radii_m[1]
             };
-            (Vector3::new(radius * angle.cos(), radius * angle.sin(), 0.0), size)
+            (
+                Vector3::new(radius * angle.cos(), radius * angle.sin(), 0.0),
+                size,
+            )
         })
         .collect()
 }

@@ -76,7 +76,10 @@ mod tests {
         };
         for p in [[0.0, 0.0], [255.0, 255.0], [127.5, 10.0], [30.0, 200.0]] {
             let back = lens.undistort(lens.distort(p)).unwrap();
-            assert!((back[0] - p[0]).abs() < 1e-7 && (back[1] - p[1]).abs() < 1e-7, "{p:?} {back:?}");
+            assert!(
+                (back[0] - p[0]).abs() < 1e-7 && (back[1] - p[1]).abs() < 1e-7,
+                "{p:?} {back:?}"
+            );
         }
         // Barrel distortion pulls the corners in: undistorting pushes them out.
         let corner = lens.undistort([0.0, 0.0]).unwrap();

@@ -92,7 +92,7 @@ const CENTRE_GATE_SHARE: f64 = 0.12;
 const CENTRE_GATE_MIN_PX: f64 = 3.0;
 /// A feature takes a stored position's label within this share of the
 /// stored features' least spacing.
-const FEATURE_GATE_SHARE: f64 = 0.3;
+const FEATURE_GATE_SHARE: f64 = 0.25;
 /// The effector marks' gate around their projections, px, and the fit's
 /// largest RMS to be trusted, px.
 const EFFECTOR_GATE_PX: f64 = 2.5;
@@ -101,9 +101,9 @@ const PROJECTION_RMS_PX: f64 = 1.0;
 /// the fewest to try it (each gives two points; the projection has 11
 /// unknowns).
 const MAX_PAIRS: usize = 9;
-const MIN_PAIRS: usize = 6;
+const MIN_PAIRS: usize = 9;
 /// The best assignment must fit this many times better than the next.
-const PAIR_MARGIN: f64 = 4.0;
+const PAIR_MARGIN: f64 = 10.0;
 /// Effector marks may be this factor off their size at the disc (nearer the camera).
 const EFFECTOR_SIZE_TOLERANCE: f64 = 2.2;
 
@@ -237,7 +237,10 @@ fn axes(a: [f64; 2], b: [f64; 2]) -> (f64, f64) {
     let r = b[0] * b[0] + b[1] * b[1];
     let mean = (p + r) / 2.0;
     let half = libm::hypot((p - r) / 2.0, q);
-    (libm::sqrt((mean + half).max(0.0)), libm::sqrt((mean - half).max(0.0)))
+    (
+        libm::sqrt((mean + half).max(0.0)),
+        libm::sqrt((mean - half).max(0.0)),
+    )
 }
 
 /// A followed blob and what it was found to be.
@@ -281,7 +284,11 @@ impl Identifier {
             self.projection.clear();
             for (k, (base, pixels)) in self.pairs.iter().enumerate() {
                 let swap = k > 0 && (assignment >> (k - 1)) & 1 == 1;
-                let [a, b] = if swap { [pixels[1], pixels[0]] } else { *pixels };
+                let [a, b] = if swap {
+                    [pixels[1], pixels[0]]
+                } else {
+                    *pixels
+                };
                 self.projection.add(base[0], a);
                 self.projection.add(base[1], b);
             }
@@ -305,7 +312,11 @@ impl Identifier {
         }
         for (k, (base, pixels)) in self.pairs.iter().enumerate() {
             let swap = k > 0 && (assignment >> (k - 1)) & 1 == 1;
-            let [a, b] = if swap { [pixels[1], pixels[0]] } else { *pixels };
+            let [a, b] = if swap {
+                [pixels[1], pixels[0]]
+            } else {
+                *pixels
+            };
             self.projection.add(base[0], a);
             self.projection.add(base[1], b);
         }
@@ -561,12 +572,9 @@ impl Identifier {
         let track = &followed.track;
         !followed.on_arm
             && track.hits >= MIN_HITS
-            && track
-                .fit
-                .model(PREDICT_ARC_RAD)
-                .is_some_and(|m| {
-                    m.rms_px <= disc_rms_px(m.radius_px()) && m.radius_px() >= MIN_TURNING_PX
-                })
+            && track.fit.model(PREDICT_ARC_RAD).is_some_and(|m| {
+                m.rms_px <= disc_rms_px(m.radius_px()) && m.radius_px() >= MIN_TURNING_PX
+            })
     }
 
     fn in_band(measured: f64, expected: f64, tolerance: f64) -> bool {
@@ -646,7 +654,8 @@ impl Identifier {
                 let Some(model) = other.track.fit.model(PREDICT_ARC_RAD) else {
                     continue;
                 };
-                let radius_m = model.radius_px() / disc.radius_px * self.settings.reference_radius_m;
+                let radius_m =
+                    model.radius_px() / disc.radius_px * self.settings.reference_radius_m;
                 if radius_m > self.settings.disc_radius_m * DISC_MARGIN {
                     inside = false;
                 }
@@ -683,8 +692,7 @@ impl Identifier {
     fn still(&self, f: &Followed) -> bool {
         !f.on_arm
             && f.track.hits >= MIN_HITS
-            && f
-                .track
+            && f.track
                 .whole
                 .model(MEASURE_ARC_RAD)
                 .is_some_and(|m| m.radius_px() <= STILL_PX && m.rms_px <= DISC_RMS_PX)
@@ -744,7 +752,11 @@ impl Identifier {
             if f.label.is_some() || f.blob.is_none() || !Self::turning(f) {
                 continue;
             }
-            if !Self::in_band(disc.diameter_m(f.track.mean_area_px()), expected, SIZE_TOLERANCE) {
+            if !Self::in_band(
+                disc.diameter_m(f.track.mean_area_px()),
+                expected,
+                SIZE_TOLERANCE,
+            ) {
                 continue;
             }
             // The light it sends against the reference mark's: blur spreads
@@ -789,6 +801,18 @@ impl Identifier {
                 }
             }
             return;
+        }
+        // The stored positions follow the labelled tracks, so that they and
+        // a track to re-acquire are read through the same disc model.
+        for f in self.tracks.iter() {
+            if let (Some(MarkLabel::PartFeature(k)), Some(_)) = (f.label, f.blob) {
+                if let (Some(p), Some(slot)) = (
+                    disc.rotating(f.track.latest.1, theta, l),
+                    self.features_rotating.get_mut(usize::from(k)),
+                ) {
+                    *slot = p;
+                }
+            }
         }
         let mut spacing = f64::INFINITY;
         for (k, p) in self.features_rotating.iter().enumerate() {
@@ -904,7 +928,13 @@ impl Identifier {
                 return found;
             };
             let sized = |area: f64, k: usize| {
-                let expected = self.settings.diameters.effector_m.get(k).copied().unwrap_or(0.0);
+                let expected = self
+                    .settings
+                    .diameters
+                    .effector_m
+                    .get(k)
+                    .copied()
+                    .unwrap_or(0.0);
                 Self::in_band(disc.diameter_m(area), expected, EFFECTOR_SIZE_TOLERANCE)
             };
             let sized_either = |area: f64| sized(area, 0) || sized(area, 1);

@@ -116,10 +116,32 @@ impl BaseProjection {
             let u = (px[0] - self.centre[0]) / self.scale;
             let v = (px[1] - self.centre[1]) / self.scale;
             let row_u = Vector12::from_column_slice(&[
-                x, y, z, 1.0, 0.0, 0.0, 0.0, 0.0, -u * x, -u * y, -u * z, -u,
+                x,
+                y,
+                z,
+                1.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                -u * x,
+                -u * y,
+                -u * z,
+                -u,
             ]);
             let row_v = Vector12::from_column_slice(&[
-                0.0, 0.0, 0.0, 0.0, x, y, z, 1.0, -v * x, -v * y, -v * z, -v,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                x,
+                y,
+                z,
+                1.0,
+                -v * x,
+                -v * y,
+                -v * z,
+                -v,
             ]);
             normal += row_u * row_u.transpose() + row_v * row_v.transpose();
         }
@@ -150,10 +172,17 @@ impl BaseProjection {
     /// without a fit or behind the camera).
     pub fn project(&self, base_m: [f64; 3]) -> Option<PixelPoint> {
         let (m, origin) = self.fit.as_ref()?;
-        let x = [base_m[0] - origin[0], base_m[1] - origin[1], base_m[2] - origin[2], 1.0];
+        let x = [
+            base_m[0] - origin[0],
+            base_m[1] - origin[1],
+            base_m[2] - origin[2],
+            1.0,
+        ];
         let row = |r: usize| -> f64 {
             (0..4)
-                .map(|k| m.get(4 * r + k).copied().unwrap_or(0.0) * x.get(k).copied().unwrap_or(0.0))
+                .map(|k| {
+                    m.get(4 * r + k).copied().unwrap_or(0.0) * x.get(k).copied().unwrap_or(0.0)
+                })
                 .sum()
         };
         let w = row(2);
