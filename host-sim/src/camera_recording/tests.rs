@@ -172,7 +172,8 @@ fn a_bad_row_names_its_line_and_column() {
 
 #[test]
 fn bad_images_name_their_file_or_are_skipped_and_counted() {
-    let spoil: [(&str, fn(&Path)); 4] = [
+    type Spoil = (&'static str, fn(&Path));
+    let spoil: [Spoil; 4] = [
         ("truncated", |p| {
             let bytes = fs::read(p).unwrap();
             fs::write(p, &bytes[..bytes.len() / 2]).unwrap();

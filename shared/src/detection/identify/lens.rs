@@ -28,7 +28,7 @@ impl LensModel {
     /// The pinhole pixel whose distorted image is `distorted`, or `None`
     /// when the iteration does not settle (a lens that folds over there).
     pub fn undistort(&self, distorted: PixelPoint) -> Option<PixelPoint> {
-        if !(self.f_px > 0.0) {
+        if self.f_px.is_nan() || self.f_px <= 0.0 {
             return None;
         }
         let [u, v] = distorted;
@@ -38,7 +38,7 @@ impl LensModel {
         for _ in 0..UNDISTORT_ITERATIONS {
             let r2 = x * x + y * y;
             let s = 1.0 + self.k1 * r2 + self.k2 * r2 * r2;
-            if !(s > 0.1) {
+            if s.is_nan() || s <= 0.1 {
                 return None;
             }
             x = xd / s;

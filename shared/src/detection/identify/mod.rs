@@ -81,6 +81,10 @@ const SIZE_TOLERANCE: f64 = 1.3;
 const FLUX_SIZE_TOLERANCE: f64 = 1.25;
 /// Observations of each feature track before the features' order is stored.
 const SETTLED_HITS: u32 = 15;
+/// A disc mark's label is given only when its blob lies this close to where
+/// its track predicted it, px, and the track was seen the frame before: an
+/// effector mark that takes a hidden disc mark's place seldom lands so well.
+const OUTPUT_GATE_PX: f64 = 1.0;
 /// A followed blob's flux may change by this factor from frame to frame.
 const FLUX_JUMP: f64 = 1.5;
 /// Turning things lie on the disc: within this factor of its radius.
@@ -252,6 +256,9 @@ struct Followed {
     on_arm: bool,
     /// Index of this frame's blob, when seen.
     blob: Option<usize>,
+    /// This frame's blob lay within [`OUTPUT_GATE_PX`] of the prediction
+    /// and the track was seen in the frame before: its label may be given.
+    sure: bool,
 }
 
 /// Identification's state over a run.
@@ -396,7 +403,8 @@ impl Identifier {
         let effector = self.find_effector(&points, &ambiguous, effector_base_m);
 
         for followed in self.tracks.iter() {
-            if let (Some(label), Some(blob)) = (followed.label, followed.blob) {
+            if let (Some(label), Some(blob), true) = (followed.label, followed.blob, followed.sure)
+            {
                 if matches!(label, MarkLabel::Effector(_)) {
                     continue;
                 }
@@ -451,8 +459,10 @@ impl Identifier {
         let disc = self.disc;
         let l = self.settings.reference_radius_m;
         let first_gate = self.settings.first_gate_px_per_rad;
+        let mut innovation: Vec<f64, MAX_TRACKS> = Vec::new();
         for followed in self.tracks.iter_mut() {
             followed.blob = None;
+            followed.sure = false;
             let track = &followed.track;
             let (theta1, p1) = track.latest;
             let first_seen = track.previous.is_none();
@@ -470,10 +480,12 @@ impl Identifier {
             };
             let mut found = None;
             let mut count = 0;
+            let mut nearest = f64::INFINITY;
             for (i, point) in points.iter().enumerate() {
                 if let Some((p, _, _)) = point {
                     let d = libm::hypot(p[0] - predicted[0], p[1] - predicted[1]);
                     if d <= reach {
+                        nearest = nearest.min(d);
                         count += 1;
                         found = Some(i);
                         if let Some(c) = claims.get_mut(i) {
@@ -483,6 +495,11 @@ impl Identifier {
                 }
             }
             let _ = choice.push(if count == 1 { found } else { None });
+            let _ = innovation.push(if track.misses == 0 {
+                nearest
+            } else {
+                f64::INFINITY
+            });
             if count > 1 {
                 report.ambiguous += 1;
             }
@@ -491,7 +508,12 @@ impl Identifier {
         for c in claims.iter() {
             let _ = ambiguous.push(*c > 1);
         }
-        for (followed, chosen) in self.tracks.iter_mut().zip(choice.iter()) {
+        for ((followed, chosen), innovation) in self
+            .tracks
+            .iter_mut()
+            .zip(choice.iter())
+            .zip(innovation.iter())
+        {
             let taken = chosen.filter(|&i| claims.get(i).copied() == Some(1));
             // A followed mark keeps its brightness: a blob sending much more
             // or less light is another mark in its place (the gripper's over
@@ -511,6 +533,7 @@ impl Identifier {
                 Some((i, (p, area, flux))) => {
                     followed.track.update(theta, p, area, flux);
                     followed.blob = Some(i);
+                    followed.sure = *innovation <= OUTPUT_GATE_PX;
                     // A disc label holds only while the track turns with the disc.
                     if matches!(
                         followed.label,
@@ -537,6 +560,7 @@ impl Identifier {
                     label: None,
                     on_arm: false,
                     blob: Some(i),
+                    sure: false,
                 };
                 if self.tracks.push(new).is_err() {
                     report.tracks_full += 1;
@@ -554,7 +578,7 @@ impl Identifier {
     fn disc_of(&self, track: &Track) -> Option<DiscImage> {
         let model = track.whole.model(MEASURE_ARC_RAD)?;
         let (major, minor) = axes(model.a_px, model.b_px);
-        if !(major > 0.0) {
+        if major.is_nan() || major <= 0.0 {
             return None;
         }
         Some(DiscImage {
