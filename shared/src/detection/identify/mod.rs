@@ -47,6 +47,9 @@ use self::track::Track;
 use super::{Blob, MAX_BLOBS};
 use crate::observation::{PixelPoint, MAX_PART_FEATURES};
 
+// The working memory the docs state, held at compile time.
+const _: () = assert!(Identifier::WORKING_MEMORY_BYTES <= 32 * 1024);
+
 /// Tracks followed at once.
 pub const MAX_TRACKS: usize = 48;
 /// Labels one frame can carry: centre, reference, the features, two effector marks.
@@ -826,18 +829,6 @@ impl Identifier {
             }
             return;
         }
-        // The stored positions follow the labelled tracks, so that they and
-        // a track to re-acquire are read through the same disc model.
-        for f in self.tracks.iter() {
-            if let (Some(MarkLabel::PartFeature(k)), Some(_)) = (f.label, f.blob) {
-                if let (Some(p), Some(slot)) = (
-                    disc.rotating(f.track.latest.1, theta, l),
-                    self.features_rotating.get_mut(usize::from(k)),
-                ) {
-                    *slot = p;
-                }
-            }
-        }
         let mut spacing = f64::INFINITY;
         for (k, p) in self.features_rotating.iter().enumerate() {
             for q in self.features_rotating.iter().skip(k + 1) {
@@ -845,6 +836,21 @@ impl Identifier {
             }
         }
         let gate = FEATURE_GATE_SHARE * spacing;
+        // An anchor: a labelled feature seen now. A lost feature is looked
+        // for at its stored offset from the anchor (the disc model's errors
+        // and a slow drift of the part cancel between neighbours); without
+        // an anchor, none is taken back.
+        let anchor = self.tracks.iter().find_map(|f| match (f.label, f.blob) {
+            (Some(MarkLabel::PartFeature(j)), Some(_)) => {
+                let now = disc.rotating(f.track.latest.1, theta, l)?;
+                let stored = self.features_rotating.get(usize::from(j))?;
+                Some([now[0] - stored[0], now[1] - stored[1]])
+            }
+            _ => None,
+        });
+        let Some(shift) = anchor else {
+            return;
+        };
         for (k, stored) in self.features_rotating.iter().enumerate() {
             let label = MarkLabel::PartFeature(k as u8);
             if self.tracks.iter().any(|f| f.label == Some(label)) {
@@ -852,7 +858,9 @@ impl Identifier {
             }
             let near: Vec<usize, MAX_TRACKS> = candidates
                 .iter()
-                .filter(|(_, p)| libm::hypot(p[0] - stored[0], p[1] - stored[1]) <= gate)
+                .filter(|(_, p)| {
+                    libm::hypot(p[0] - stored[0] - shift[0], p[1] - stored[1] - shift[1]) <= gate
+                })
                 .map(|(i, _)| *i)
                 .collect();
             if let [i] = near.as_slice() {
