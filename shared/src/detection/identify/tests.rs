@@ -99,5 +99,8 @@ fn nothing_is_labelled_from_nothing() {
         identifier.identify(0.1 * k as f64, &[], &[[f64::NAN; 3]; 2], &mut out);
         assert!(out.is_empty());
     }
-    eprintln!("identifier working memory {} bytes", Identifier::WORKING_MEMORY_BYTES);
+    eprintln!(
+        "identifier working memory {} bytes",
+        Identifier::WORKING_MEMORY_BYTES
+    );
 }
