@@ -6,7 +6,8 @@
 //! points written undistorted (the log's camera is a pinhole).
 //!
 //! [`score`] compares the labels with a simulated recording's truth file;
-//! the front end itself never reads it.
+//! the front end itself never reads it. With `FRONT_END_DEBUG` set in the
+//! environment, each frame's tracks and labels are printed to stderr.
 
 pub mod score;
 
