@@ -17,7 +17,9 @@
 pub mod accuracy;
 pub mod batch_ml;
 pub mod calibration;
+pub mod camera_recording;
 pub mod commands;
+pub mod front_end;
 pub mod geometry;
 pub mod homing;
 pub mod link;

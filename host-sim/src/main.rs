@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use host_sim::commands::{
     accuracy, calibrate, calibration_demo, faults, free_run, homing, link_check, montecarlo,
-    record, run, vision_check,
+    record, record_images, run, vision_check, vision_log,
 };
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
@@ -47,6 +47,12 @@ enum Command {
     /// The mark detector on rendered camera frames of seeded picks, against the truth:
     /// centroid errors, missed and spurious marks, perspective bias, pictures with --out.
     VisionCheck(vision_check::Args),
+    /// Render the pick of one seeded workcell as a camera recording (PNG frames,
+    /// frames.csv, recording.json) with its truth and ideal log beside it.
+    RecordImages(record_images::Args),
+    /// The vision front end: a camera recording in, the observation log out
+    /// (detection, identification, undistortion); --score against its truth.
+    VisionLog(vision_log::Args),
 }
 
 fn main() -> ExitCode {
@@ -64,6 +70,8 @@ fn main() -> ExitCode {
         Some(Command::LinkCheck(args)) => link_check::run(args),
         Some(Command::FreeRun(args)) => free_run::run(args),
         Some(Command::VisionCheck(args)) => vision_check::run(args),
+        Some(Command::RecordImages(args)) => record_images::run(args),
+        Some(Command::VisionLog(args)) => vision_log::run(args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

@@ -24,8 +24,10 @@ pub mod homing;
 pub mod link_check;
 pub mod montecarlo;
 pub mod record;
+pub mod record_images;
 pub mod run;
 pub mod vision_check;
+pub mod vision_log;
 
 /// The experiment `name` of the scenario file at `scenario` (the embedded
 /// default when absent): what every campaign subcommand starts from.

@@ -24,6 +24,7 @@
 pub mod background;
 pub mod blob;
 pub mod components;
+pub mod identify;
 pub mod image;
 
 use core::fmt;

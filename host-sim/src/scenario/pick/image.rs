@@ -61,6 +61,11 @@ pub struct ImageSettings {
     pub feature_mark_radius_m: f64,
     /// Radius of each gripper mark, m.
     pub effector_mark_radius_m: f64,
+    /// Bright objects on the disc that are no marks, for identification to
+    /// refuse (0: none).
+    pub distractors: usize,
+    /// Their radii, alternately, m: smaller and larger than every mark.
+    pub distractor_radii_m: [f64; 2],
     /// Electrons per grey level: shot noise has variance `grey / gain`.
     pub electrons_per_grey: f64,
     /// Read noise, grey levels (standard deviation).
@@ -93,6 +98,8 @@ impl Default for ImageSettings {
             reference_mark_radius_m: 0.012,
             feature_mark_radius_m: 0.008,
             effector_mark_radius_m: 0.01,
+            distractors: 0,
+            distractor_radii_m: [0.005, 0.02],
             electrons_per_grey: 40.0,
             read_noise_grey: 2.0,
         }
@@ -124,6 +131,12 @@ impl ImageSettings {
             ("light_drift", self.light_drift),
             ("vignetting", self.vignetting),
         ];
+        if self.distractors > 32 {
+            bail!(
+                "image.distractors = {} is out of range: at most 32",
+                self.distractors
+            );
+        }
         for (field, value) in unit {
             if !(value.is_finite() && (0.0..=1.0).contains(&value)) {
                 bail!("image.{field} = {value} is out of range: it must be in [0, 1]");
@@ -137,6 +150,8 @@ impl ImageSettings {
             ("reference_mark_radius_m", self.reference_mark_radius_m),
             ("feature_mark_radius_m", self.feature_mark_radius_m),
             ("effector_mark_radius_m", self.effector_mark_radius_m),
+            ("distractor_radii_m[0]", self.distractor_radii_m[0]),
+            ("distractor_radii_m[1]", self.distractor_radii_m[1]),
             ("electrons_per_grey", self.electrons_per_grey),
         ];
         for (field, value) in positive {

@@ -123,10 +123,12 @@ impl Renderer {
     pub fn render(&mut self, scene: &Scene) {
         surface::paint_surfaces(&mut self.buffer, &self.rays, scene, &self.settings);
         let mark_albedo = self.settings.mark_reflectance as f32;
-        let disc_marks = scene
-            .marks
-            .iter()
-            .filter(|m| matches!(m.kind, MarkKind::DiscCentre | MarkKind::Reference));
+        let disc_marks = scene.marks.iter().filter(|m| {
+            matches!(
+                m.kind,
+                MarkKind::DiscCentre | MarkKind::Reference | MarkKind::Distractor(_)
+            )
+        });
         for mark in disc_marks {
             self.paint_mark(mark, mark_albedo, MARK_DEPTH_BIAS_M);
         }

@@ -28,6 +28,9 @@ pub enum MarkKind {
     Feature(u8),
     /// Gripper mark 0 or 1.
     Effector(u8),
+    /// A bright object on the disc that is no mark (a bolt head, a glint):
+    /// what identification must not take for one.
+    Distractor(u8),
 }
 
 impl MarkKind {
@@ -38,6 +41,7 @@ impl MarkKind {
             Self::Reference => "reference",
             Self::Feature(_) => "part feature",
             Self::Effector(_) => "gripper",
+            Self::Distractor(_) => "distractor",
         }
     }
 }
@@ -250,6 +254,29 @@ fn flange_pose(chain: &shared::robot::FrameChain<f64>) -> Isometry3<f64> {
     )
 }
 
+/// The distractors of `settings` in the rotating frame with their radii:
+/// spread over the disc between 0.08 m and 0.42 m from its centre (golden
+/// angle steps, so the same every run), alternately smaller and larger than
+/// every mark (`distractor_radii_m`).
+pub fn distractors_rotating(settings: &ImageSettings) -> Vec<(Vector3<f64>, f64)> {
+    (0..settings.distractors)
+        .map(|k| {
+            let k_f = k as f64;
+            let radius = 0.08 + 0.34 * (k_f * 0.618_034 + 0.37).fract();
+            let angle = 1.1 + k_f * 2.399_963;
+            let size = if k % 2 == 0 {
+                settings.distractor_radii_m[0]
+            } else {
+                settings.distractor_radii_m[1]
+            };
+            (
+                Vector3::new(radius * angle.cos(), radius * angle.sin(), 0.0),
+                size,
+            )
+        })
+        .collect()
+}
+
 /// Builds the scene of `frame` in `workcell` with the mark sizes and the
 /// part's margin of `settings`.
 pub fn build_scene(workcell: &Workcell, frame: &FrameState, settings: &ImageSettings) -> Scene {
@@ -286,6 +313,17 @@ pub fn build_scene(workcell: &Workcell, frame: &FrameState, settings: &ImageSett
         normal_disc: [z; 3],
         radius_m: settings.reference_mark_radius_m,
     });
+
+    for (i, (p_rotating, radius_m)) in distractors_rotating(settings).into_iter().enumerate() {
+        marks.push(Mark {
+            kind: MarkKind::Distractor(u8::try_from(i).unwrap_or(u8::MAX)),
+            centre_disc: frame
+                .theta_rad
+                .map(|theta| Workcell::disc_from_rotating(theta, &p_rotating)),
+            normal_disc: [z; 3],
+            radius_m,
+        });
+    }
 
     // The part at the middle of the exposure, and its motion to the other instants.
     let (features_mid, up_mid, motion): (Vec<Vector3<f64>>, Vector3<f64>, [Isometry3<f64>; 3]) =

@@ -1,0 +1,149 @@
+//! Scoring a front end's labels against a simulated recording's truth: a
+//! label is right when the true mark nearest its point (of every mark,
+//! distractors included, within [`MATCH_PX`]) is the mark it names; wrong
+//! (a mislabel) otherwise. Part features are matched as a set first (the
+//! front end's order is its own): each feature label takes the true feature
+//! it most often lands on. A visible mark without its label is dropped.
+
+use std::collections::BTreeMap;
+
+use shared::detection::identify::MarkLabel;
+
+use super::FrameLabels;
+use crate::camera_recording::simulate::{TrueFrame, TrueMark};
+
+/// A label's point must lie this close to its true mark, px.
+pub const MATCH_PX: f64 = 1.5;
+/// Farther, but the labelled mark is still the nearest within this: the
+/// right mark with a displaced point (a mark partly hidden), px.
+pub const OFF_PX: f64 = 4.0;
+
+/// The tally.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct LabelScore {
+    pub frames: usize,
+    pub labels: usize,
+    pub right: usize,
+    pub mislabelled: usize,
+    /// The right mark, its point more than `MATCH_PX` from its centre (partly hidden).
+    pub right_but_off: usize,
+    /// Visible marks (the truth's `visible`) without their label, by class.
+    pub dropped: BTreeMap<String, usize>,
+    /// Visible marks, by class.
+    pub visible: BTreeMap<String, usize>,
+    /// Right labels by class.
+    pub right_by_class: BTreeMap<String, usize>,
+    /// Trigger ids and labels of the first mislabels.
+    pub examples: Vec<String>,
+}
+
+fn class(label: MarkLabel) -> (&'static str, usize) {
+    match label {
+        MarkLabel::DiscCentre => ("disc_center", 0),
+        MarkLabel::Reference => ("reference", 0),
+        MarkLabel::PartFeature(i) => ("part_feature", usize::from(i)),
+        MarkLabel::Effector(i) => ("effector", usize::from(i)),
+    }
+}
+
+/// Scores `labels` (frames in order) against `truth` (by trigger id).
+pub fn score(labels: &[FrameLabels], truth: &[TrueFrame]) -> LabelScore {
+    let by_id: BTreeMap<u64, &TrueFrame> = truth.iter().map(|f| (f.trigger_id, f)).collect();
+    fn nearest(frame: &TrueFrame, p: [f64; 2]) -> Option<&TrueMark> {
+        nearest_within(frame, p, MATCH_PX)
+    }
+    fn nearest_within(frame: &TrueFrame, p: [f64; 2], limit: f64) -> Option<&TrueMark> {
+        frame
+            .marks
+            .iter()
+            .filter(|m| m.shows && m.pinhole_px.iter().all(|x| x.is_finite()))
+            .map(|m| (m, (m.pinhole_px[0] - p[0]).hypot(m.pinhole_px[1] - p[1])))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .filter(|(_, d)| *d <= limit)
+            .map(|(m, _)| m)
+    }
+    // Feature order: each feature label's most frequent true feature.
+    let mut votes: BTreeMap<(usize, usize), usize> = BTreeMap::new();
+    for frame in labels {
+        let Some(t) = by_id.get(&frame.trigger_id) else {
+            continue;
+        };
+        for p in &frame.points {
+            if let ("part_feature", k) = class(p.label) {
+                if let Some(m) = nearest(t, p.pixel).filter(|m| m.kind == "part_feature") {
+                    *votes.entry((k, m.index)).or_default() += 1;
+                }
+            }
+        }
+    }
+    let mut feature_map: BTreeMap<usize, usize> = BTreeMap::new();
+    for (&(k, index), &n) in &votes {
+        let best = votes
+            .iter()
+            .filter(|((kk, _), _)| *kk == k)
+            .map(|(_, &m)| m)
+            .max()
+            .unwrap_or(0);
+        if n == best {
+            feature_map.entry(k).or_insert(index);
+        }
+    }
+    let mut score = LabelScore::default();
+    for frame in labels {
+        let Some(t) = by_id.get(&frame.trigger_id) else {
+            continue;
+        };
+        score.frames += 1;
+        for m in t
+            .marks
+            .iter()
+            .filter(|m| m.visible && m.kind != "distractor")
+        {
+            *score.visible.entry(m.kind.clone()).or_default() += 1;
+            let labelled = frame.points.iter().any(|p| {
+                let (kind, k) = class(p.label);
+                let index = if kind == "part_feature" {
+                    feature_map.get(&k).copied()
+                } else {
+                    Some(k)
+                };
+                kind == m.kind && index == Some(m.index)
+            });
+            if !labelled {
+                *score.dropped.entry(m.kind.clone()).or_default() += 1;
+            }
+        }
+        for p in &frame.points {
+            score.labels += 1;
+            let (kind, k) = class(p.label);
+            let index = if kind == "part_feature" {
+                feature_map.get(&k).copied()
+            } else {
+                Some(k)
+            };
+            let right =
+                nearest(t, p.pixel).is_some_and(|m| m.kind == kind && Some(m.index) == index);
+            let off = !right
+                && nearest_within(t, p.pixel, OFF_PX)
+                    .is_some_and(|m| m.kind == kind && Some(m.index) == index);
+            if off {
+                score.right_but_off += 1;
+            } else if right {
+                score.right += 1;
+                *score.right_by_class.entry(kind.to_string()).or_default() += 1;
+            } else {
+                score.mislabelled += 1;
+                if score.examples.len() < 10 {
+                    let near = nearest(t, p.pixel)
+                        .map(|m| format!("{} {}", m.kind, m.index))
+                        .unwrap_or_else(|| "nothing".into());
+                    score.examples.push(format!(
+                        "trigger {}: {:?} at ({:.1}, {:.1}) is {near}",
+                        frame.trigger_id, p.label, p.pixel[0], p.pixel[1]
+                    ));
+                }
+            }
+        }
+    }
+    score
+}

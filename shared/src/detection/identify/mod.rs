@@ -1,0 +1,986 @@
+//! Identification: which detected blob is which mark (disc centre, reference
+//! mark, part feature `i`, effector mark `i`), from what a front end knows and
+//! never from the world's truth: the encoder angle latched at each frame (the
+//! disc's marks turn about the disc centre's image in step with `theta`), the
+//! marks' sizes (the recording's header), the gripper marks' base-frame
+//! centres at each frame (joint encoders and kinematics) and the lens.
+//!
+//! The steps of one frame ([`Identifier::identify`]):
+//! 1. undistort each blob to its pinhole pixel ([`lens`]);
+//! 2. follow blobs from frame to frame ([`track`]): each track predicts its
+//!    blob at the new angle from the fit of its path against `theta` (or by
+//!    moving it linearly with the angle); a blob is taken only when it is the
+//!    one blob within the gate of one track and no other track's gate holds
+//!    it; two candidates in a gate leave both unlabelled for that frame;
+//! 3. the reference mark: the one turning track for which the hypothesis
+//!    "this is the reference" (its path's size gives the image scale,
+//!    `L` metres) makes its own size the reference mark's, puts every other
+//!    turning track inside the disc and leaves at most the part's feature
+//!    count of feature-sized tracks; its path gives the disc's image
+//!    (`c + A Rz(theta) p` for a point `p` of the rotating frame);
+//! 4. the disc centre: the one still track of the centre mark's size at the
+//!    reference path's centre;
+//! 5. the part's features: the turning tracks of the feature marks' size;
+//!    the first time exactly `part_feature_count` of them are seen their
+//!    rotating-frame positions are stored in a fixed order (by angle about
+//!    the disc centre), later each takes the label of the stored position it
+//!    alone is near;
+//! 6. the effector marks: the camera's projection of base-frame points is
+//!    fitted ([`projection`]), first from the middle of the two blobs that no
+//!    track explains when there are exactly two, then from the labelled
+//!    marks; each mark is the one blob near its projection.
+//!
+//! Anything ambiguous, hidden or unexplained is left unlabelled: a dropped
+//! point costs a frame, a wrong label would corrupt the calibration.
+//!
+//! Working memory: [`Identifier::WORKING_MEMORY_BYTES`] (fixed, no heap).
+
+pub mod lens;
+pub mod projection;
+pub mod track;
+
+use heapless::Vec;
+
+use self::lens::LensModel;
+use self::projection::BaseProjection;
+use self::track::Track;
+use super::{Blob, MAX_BLOBS};
+use crate::observation::{PixelPoint, MAX_PART_FEATURES};
+
+// The working memory the docs state, held at compile time.
+const _: () = assert!(Identifier::WORKING_MEMORY_BYTES <= 32 * 1024);
+
+/// Tracks followed at once.
+pub const MAX_TRACKS: usize = 48;
+/// Labels one frame can carry: centre, reference, the features, two effector marks.
+pub const MAX_LABELS: usize = 2 + MAX_PART_FEATURES + 2;
+
+/// Frames a track survives unseen.
+const MAX_MISSES: u32 = 4;
+/// The recent fit predicts once it spans this arc, rad, and fits this well, px.
+const PREDICT_ARC_RAD: f64 = 0.25;
+const PREDICT_RMS_PX: f64 = 0.35;
+/// A track is turning with the disc (or still on it) when its recent fit
+/// explains it within `DISC_RMS_PX` plus `DISC_RMS_SHARE` of its path's
+/// radius (the affine model's departure from perspective grows with it).
+const DISC_RMS_PX: f64 = 0.35;
+const DISC_RMS_SHARE: f64 = 0.015;
+
+/// The recent fit's largest RMS for a path of `radius_px`.
+fn disc_rms_px(radius_px: f64) -> f64 {
+    DISC_RMS_PX + DISC_RMS_SHARE * radius_px
+}
+/// Its path's size is measured over at least this arc, rad.
+const MEASURE_ARC_RAD: f64 = 1.2;
+/// Fewest observations to call a track turning or still.
+const MIN_HITS: u32 = 6;
+/// A path smaller than this is still, px; larger than `MIN_TURNING_PX`, turning.
+const STILL_PX: f64 = 0.4;
+const MIN_TURNING_PX: f64 = 4.0;
+/// A mark's measured diameter may be this factor off its header's.
+const SIZE_TOLERANCE: f64 = 1.3;
+/// A feature's diameter from its flux may be this factor off (the light
+/// varies by some 20 % across the image: 10 % in diameter).
+const FLUX_SIZE_TOLERANCE: f64 = 1.25;
+/// Observations of each feature track before the features' order is stored.
+const SETTLED_HITS: u32 = 15;
+/// A disc mark's label is given only when its blob lies this close to where
+/// its track predicted it, px, and the track was seen the frame before: an
+/// effector mark that takes a hidden disc mark's place seldom lands so well.
+const OUTPUT_GATE_PX: f64 = 1.0;
+/// A followed blob's flux may change by this factor from frame to frame.
+const FLUX_JUMP: f64 = 1.5;
+/// Turning things lie on the disc: within this factor of its radius.
+const DISC_MARGIN: f64 = 1.1;
+/// The disc centre's mark lies within this share of the reference path's
+/// radius (at least `CENTRE_GATE_MIN_PX`) of that path's centre (the
+/// affine model's centre is off the centre's image under perspective).
+const CENTRE_GATE_SHARE: f64 = 0.12;
+const CENTRE_GATE_MIN_PX: f64 = 3.0;
+/// A feature takes a stored position's label within this share of the
+/// stored features' least spacing.
+const FEATURE_GATE_SHARE: f64 = 0.25;
+/// The effector marks' gate around their projections, px, and the fit's
+/// largest RMS to be trusted, px.
+const EFFECTOR_GATE_PX: f64 = 2.5;
+const PROJECTION_RMS_PX: f64 = 1.0;
+/// Frames of two unexplained blobs kept to bootstrap the projection, and
+/// the fewest to try it (each gives two points; the projection has 11
+/// unknowns).
+const MAX_PAIRS: usize = 9;
+const MIN_PAIRS: usize = 9;
+/// The best assignment must fit this many times better than the next.
+const PAIR_MARGIN: f64 = 10.0;
+/// Effector marks may be this factor off their size at the disc (nearer the camera).
+const EFFECTOR_SIZE_TOLERANCE: f64 = 2.2;
+
+/// Which mark a blob is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum MarkLabel {
+    /// The mark at the disc's centre.
+    DiscCentre,
+    /// The reference mark at `L` from the centre.
+    Reference,
+    /// Part feature `i` in this run's fixed order.
+    PartFeature(u8),
+    /// Effector mark `i` (columns `e{i}_base_*` of the recording).
+    Effector(u8),
+}
+
+/// The marks' diameters, m (the recording's header).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MarkDiameters {
+    /// Disc-centre mark.
+    pub disc_centre_m: f64,
+    /// Reference mark.
+    pub reference_m: f64,
+    /// Each part feature's mark.
+    pub part_feature_m: f64,
+    /// The two effector marks.
+    pub effector_m: [f64; 2],
+}
+
+/// What identification is told about the cell.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IdentifySettings {
+    /// The camera's intrinsics and lens.
+    pub lens: LensModel,
+    /// `L`, m.
+    pub reference_radius_m: f64,
+    /// The disc's radius, m.
+    pub disc_radius_m: f64,
+    /// Feature marks on the part.
+    pub part_feature_count: usize,
+    /// The marks' sizes.
+    pub diameters: MarkDiameters,
+    /// Gate around a track's predicted position, px.
+    pub gate_px: f64,
+    /// A track seen once, before the disc's image is known, cannot be
+    /// predicted: its gate grows by this much per radian the disc turned
+    /// (about the largest image radius of a disc point), px per rad.
+    pub first_gate_px_per_rad: f64,
+}
+
+/// A labelled point: the blob's pinhole pixel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LabelledPoint {
+    /// Which mark.
+    pub label: MarkLabel,
+    /// Undistorted (pinhole) pixel, as the observation log wants it.
+    pub pixel: PixelPoint,
+    /// Index of the blob in the frame's detections.
+    pub blob: usize,
+}
+
+/// What one frame's identification did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct IdentifyReport {
+    /// Blobs in the frame.
+    pub blobs: u32,
+    /// Blobs given a label.
+    pub labelled: u32,
+    /// Blobs within the gate of two tracks, or two blobs in one gate.
+    pub ambiguous: u32,
+    /// Tracks that had to be dropped for want of room.
+    pub tracks_full: u32,
+}
+
+/// The disc's image from the reference mark's path: a rotating-frame point
+/// `p` (m) is imaged at `centre + A Rz(theta) p`, `A = [a b] / L`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct DiscImage {
+    centre_px: PixelPoint,
+    a_px: [f64; 2],
+    b_px: [f64; 2],
+    /// Path radius, px (RMS of the half-axes).
+    radius_px: f64,
+    /// Image scale along the path's major axis, px per metre at the disc.
+    scale_px_per_m: f64,
+    /// Minor over major axis (foreshortening).
+    aspect: f64,
+}
+
+impl DiscImage {
+    /// The rotating-frame point (m) imaged at `pixel` at `theta`.
+    fn rotating(&self, pixel: PixelPoint, theta: f64, reference_radius_m: f64) -> Option<[f64; 2]> {
+        let [a0, a1] = self.a_px;
+        let [b0, b1] = self.b_px;
+        let det = a0 * b1 - b0 * a1;
+        if det.abs() < 1e-9 {
+            return None;
+        }
+        let dx = pixel[0] - self.centre_px[0];
+        let dy = pixel[1] - self.centre_px[1];
+        // [a b] w = d, w = Rz(theta) p / L.
+        let w0 = (b1 * dx - b0 * dy) / det * reference_radius_m;
+        let w1 = (-a1 * dx + a0 * dy) / det * reference_radius_m;
+        let (s, c) = libm::sincos(theta);
+        Some([c * w0 + s * w1, -s * w0 + c * w1])
+    }
+
+    /// The image at `theta` of the rotating-frame point `p` (m).
+    fn pixel(&self, p: [f64; 2], theta: f64, reference_radius_m: f64) -> PixelPoint {
+        let (s, c) = libm::sincos(theta);
+        let w0 = (c * p[0] - s * p[1]) / reference_radius_m;
+        let w1 = (s * p[0] + c * p[1]) / reference_radius_m;
+        [
+            self.centre_px[0] + self.a_px[0] * w0 + self.b_px[0] * w1,
+            self.centre_px[1] + self.a_px[1] * w0 + self.b_px[1] * w1,
+        ]
+    }
+
+    /// A blob's mark diameter, m, from its mean area under this scale.
+    fn diameter_m(&self, area_px: f64) -> f64 {
+        2.0 * libm::sqrt(area_px / core::f64::consts::PI / self.aspect.max(0.1))
+            / self.scale_px_per_m
+    }
+}
+
+/// The image scale and foreshortening of a path (`[a b]`'s singular values).
+fn axes(a: [f64; 2], b: [f64; 2]) -> (f64, f64) {
+    // M^T M = [[a.a, a.b], [a.b, b.b]].
+    let p = a[0] * a[0] + a[1] * a[1];
+    let q = a[0] * b[0] + a[1] * b[1];
+    let r = b[0] * b[0] + b[1] * b[1];
+    let mean = (p + r) / 2.0;
+    let half = libm::hypot((p - r) / 2.0, q);
+    (
+        libm::sqrt((mean + half).max(0.0)),
+        libm::sqrt((mean - half).max(0.0)),
+    )
+}
+
+/// A followed blob and what it was found to be.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Followed {
+    track: Track,
+    label: Option<MarkLabel>,
+    /// Once taken for an effector mark: never a disc mark.
+    on_arm: bool,
+    /// Index of this frame's blob, when seen.
+    blob: Option<usize>,
+    /// This frame's blob lay within [`OUTPUT_GATE_PX`] of the prediction
+    /// and the track was seen in the frame before: its label may be given.
+    sure: bool,
+}
+
+/// Identification's state over a run.
+#[derive(Debug, Clone)]
+pub struct Identifier {
+    settings: IdentifySettings,
+    tracks: Vec<Followed, MAX_TRACKS>,
+    disc: Option<DiscImage>,
+    features_rotating: Vec<[f64; 2], MAX_PART_FEATURES>,
+    projection: BaseProjection,
+    pairs: Vec<([[f64; 3]; 2], [PixelPoint; 2]), MAX_PAIRS>,
+    /// The reference mark's mean flux, the yardstick of the other marks' sizes.
+    reference_flux: Option<f64>,
+}
+
+impl Identifier {
+    /// Bootstrap of the projection: the frames showing exactly two
+    /// unexplained blobs of an effector mark's size. Which blob is which mark
+    /// is unknown; the assignment (fixed in the first pair, since only one of
+    /// the two global assignments fits once the gripper has turned) that
+    /// lets one projection explain all of them is taken, when it alone does.
+    fn solve_pairs(&mut self) {
+        let n = self.pairs.len();
+        if n < MIN_PAIRS {
+            return;
+        }
+        let mut best: Option<(u32, f64)> = None;
+        let mut second = f64::INFINITY;
+        for assignment in 0u32..(1u32 << (n - 1)) {
+            self.projection.clear();
+            for (k, (base, pixels)) in self.pairs.iter().enumerate() {
+                let swap = k > 0 && (assignment >> (k - 1)) & 1 == 1;
+                let [a, b] = if swap {
+                    [pixels[1], pixels[0]]
+                } else {
+                    *pixels
+                };
+                self.projection.add(base[0], a);
+                self.projection.add(base[1], b);
+            }
+            let rms = self.projection.refit().unwrap_or(f64::INFINITY);
+            match best {
+                Some((_, b)) if rms >= b => second = second.min(rms),
+                _ => {
+                    if let Some((_, b)) = best {
+                        second = second.min(b);
+                    }
+                    best = Some((assignment, rms));
+                }
+            }
+        }
+        self.projection.clear();
+        let Some((assignment, rms)) = best else {
+            return;
+        };
+        if rms > PROJECTION_RMS_PX || second < PAIR_MARGIN * rms.max(0.05) {
+            return;
+        }
+        for (k, (base, pixels)) in self.pairs.iter().enumerate() {
+            let swap = k > 0 && (assignment >> (k - 1)) & 1 == 1;
+            let [a, b] = if swap {
+                [pixels[1], pixels[0]]
+            } else {
+                *pixels
+            };
+            self.projection.add(base[0], a);
+            self.projection.add(base[1], b);
+        }
+        self.projection.refit();
+        self.pairs.clear();
+    }
+
+    /// Bytes of the identifier's state (all of its working memory).
+    pub const WORKING_MEMORY_BYTES: usize = core::mem::size_of::<Self>();
+
+    /// A fresh identifier (a run starts).
+    pub fn new(settings: IdentifySettings) -> Self {
+        let lens = settings.lens;
+        Self {
+            settings,
+            tracks: Vec::new(),
+            disc: None,
+            features_rotating: Vec::new(),
+            projection: BaseProjection::new([lens.cx, lens.cy], lens.f_px),
+            pairs: Vec::new(),
+            reference_flux: None,
+        }
+    }
+
+    /// The tracks followed now with their labels (for pictures and diagnosis).
+    pub fn tracks(&self) -> impl Iterator<Item = (&Track, Option<MarkLabel>)> {
+        self.tracks.iter().map(|f| (&f.track, f.label))
+    }
+
+    /// The disc's image once the reference mark is known: the centre of the
+    /// reference path, px, and the image scale at the disc, px per metre.
+    pub fn disc_image(&self) -> Option<(PixelPoint, f64)> {
+        self.disc.map(|d| (d.centre_px, d.scale_px_per_m))
+    }
+
+    /// The base-frame projection's correspondences and RMS, px (diagnosis).
+    pub fn projection_state(&self) -> (usize, f64) {
+        (self.projection.len(), self.projection.rms_px())
+    }
+
+    /// Labels the `blobs` of the frame at `theta` (the encoder angle latched
+    /// at its trigger), with the effector marks' base-frame centres then,
+    /// into `out` (cleared first).
+    pub fn identify(
+        &mut self,
+        theta: f64,
+        blobs: &[Blob],
+        effector_base_m: &[[f64; 3]; 2],
+        out: &mut Vec<LabelledPoint, MAX_LABELS>,
+    ) -> IdentifyReport {
+        out.clear();
+        let mut report = IdentifyReport {
+            blobs: blobs.len() as u32,
+            ..IdentifyReport::default()
+        };
+        if !theta.is_finite() {
+            return report;
+        }
+        // 1. Pinhole pixels.
+        let mut points: Vec<Option<(PixelPoint, f64, f64)>, MAX_BLOBS> = Vec::new();
+        for blob in blobs.iter().take(MAX_BLOBS) {
+            let pixel = self
+                .settings
+                .lens
+                .undistort([f64::from(blob.x_px), f64::from(blob.y_px)]);
+            let area = f64::from(blob.area_px);
+            let flux = area * f64::from(blob.mean_contrast);
+            let _ = points.push(pixel.map(|p| (p, area, flux)));
+        }
+        // 2. Association, unique both ways.
+        let ambiguous = self.associate(theta, &points, &mut report);
+        // 3-5. Disc marks.
+        self.find_reference(theta);
+        self.find_centre();
+        self.find_features(theta);
+        // 6. Effector marks.
+        let effector = self.find_effector(&points, &ambiguous, effector_base_m);
+
+        for followed in self.tracks.iter() {
+            if let (Some(label), Some(blob), true) = (followed.label, followed.blob, followed.sure)
+            {
+                if matches!(label, MarkLabel::Effector(_)) {
+                    continue;
+                }
+                if let Some(Some((pixel, _, _))) = points.get(blob) {
+                    let _ = out.push(LabelledPoint {
+                        label,
+                        pixel: *pixel,
+                        blob,
+                    });
+                }
+            }
+        }
+        for point in effector.iter().flatten() {
+            // An effector blob that a disc label also claims is dropped both ways.
+            if out.iter().any(|p| p.blob == point.blob) {
+                out.retain(|p| p.blob != point.blob);
+                continue;
+            }
+            let _ = out.push(*point);
+        }
+        // No label twice, no blob twice.
+        let mut keep: Vec<LabelledPoint, MAX_LABELS> = Vec::new();
+        for p in out.iter() {
+            let twice = out
+                .iter()
+                .filter(|q| q.label == p.label || q.blob == p.blob)
+                .count()
+                > 1;
+            if !twice {
+                let _ = keep.push(*p);
+            }
+        }
+        *out = keep;
+        report.labelled = out.len() as u32;
+        report.ambiguous += ambiguous.iter().filter(|&&a| a).count() as u32;
+        report
+    }
+
+    /// Matches tracks and blobs; returns which blobs were ambiguous.
+    fn associate(
+        &mut self,
+        theta: f64,
+        points: &[Option<(PixelPoint, f64, f64)>],
+        report: &mut IdentifyReport,
+    ) -> Vec<bool, MAX_BLOBS> {
+        let gate = self.settings.gate_px;
+        let mut claims: Vec<u8, MAX_BLOBS> = Vec::new();
+        let mut choice: Vec<Option<usize>, MAX_TRACKS> = Vec::new();
+        for _ in points {
+            let _ = claims.push(0);
+        }
+        let disc = self.disc;
+        let l = self.settings.reference_radius_m;
+        let first_gate = self.settings.first_gate_px_per_rad;
+        let mut innovation: Vec<f64, MAX_TRACKS> = Vec::new();
+        for followed in self.tracks.iter_mut() {
+            followed.blob = None;
+            followed.sure = false;
+            let track = &followed.track;
+            let (theta1, p1) = track.latest;
+            let first_seen = track.previous.is_none();
+            let on_disc = disc.and_then(|d| {
+                let q = d.rotating(p1, theta1, l)?;
+                Some(d.pixel(q, theta, l))
+            });
+            let (predicted, reach) = match (first_seen, on_disc) {
+                (true, Some(p)) => (p, gate),
+                (true, None) => (p1, gate + first_gate * (theta - theta1).abs()),
+                (false, _) => (
+                    track.predict(theta, PREDICT_ARC_RAD, PREDICT_RMS_PX),
+                    gate * (1.0 + f64::from(track.misses.min(2))),
+                ),
+            };
+            let mut found = None;
+            let mut count = 0;
+            let mut nearest = f64::INFINITY;
+            for (i, point) in points.iter().enumerate() {
+                if let Some((p, _, _)) = point {
+                    let d = libm::hypot(p[0] - predicted[0], p[1] - predicted[1]);
+                    if d <= reach {
+                        nearest = nearest.min(d);
+                        count += 1;
+                        found = Some(i);
+                        if let Some(c) = claims.get_mut(i) {
+                            *c = c.saturating_add(1);
+                        }
+                    }
+                }
+            }
+            let _ = choice.push(if count == 1 { found } else { None });
+            let _ = innovation.push(if track.misses == 0 {
+                nearest
+            } else {
+                f64::INFINITY
+            });
+            if count > 1 {
+                report.ambiguous += 1;
+            }
+        }
+        let mut ambiguous: Vec<bool, MAX_BLOBS> = Vec::new();
+        for c in claims.iter() {
+            let _ = ambiguous.push(*c > 1);
+        }
+        for ((followed, chosen), innovation) in self
+            .tracks
+            .iter_mut()
+            .zip(choice.iter())
+            .zip(innovation.iter())
+        {
+            let taken = chosen.filter(|&i| claims.get(i).copied() == Some(1));
+            // A followed mark keeps its brightness: a blob sending much more
+            // or less light is another mark in its place (the gripper's over
+            // a feature) or the mark half hidden; it is not taken.
+            let steady = |flux: f64| {
+                let track = &followed.track;
+                track.hits < MIN_HITS || Self::in_band(flux, track.mean_flux(), FLUX_JUMP)
+            };
+            let taken = taken.filter(|&i| {
+                points
+                    .get(i)
+                    .copied()
+                    .flatten()
+                    .is_some_and(|(_, _, flux)| steady(flux))
+            });
+            match taken.and_then(|i| points.get(i).copied().flatten().map(|p| (i, p))) {
+                Some((i, (p, area, flux))) => {
+                    followed.track.update(theta, p, area, flux);
+                    followed.blob = Some(i);
+                    followed.sure = *innovation <= OUTPUT_GATE_PX;
+                    // A disc label holds only while the track turns with the disc.
+                    if matches!(
+                        followed.label,
+                        Some(MarkLabel::Reference | MarkLabel::PartFeature(_))
+                    ) && followed
+                        .track
+                        .fit
+                        .model(PREDICT_ARC_RAD)
+                        .is_some_and(|m| m.rms_px > disc_rms_px(m.radius_px()))
+                    {
+                        followed.label = None;
+                    }
+                }
+                None => followed.track.misses += 1,
+            }
+        }
+        // A track seen once and then not is dropped at once: it predicts nothing.
+        self.tracks
+            .retain(|f| f.track.misses <= if f.track.hits < 2 { 0 } else { MAX_MISSES });
+        for (i, point) in points.iter().enumerate() {
+            if let (Some((p, area, flux)), Some(0)) = (point, claims.get(i).copied()) {
+                let new = Followed {
+                    track: Track::start(theta, *p, *area, *flux),
+                    label: None,
+                    on_arm: false,
+                    blob: Some(i),
+                    sure: false,
+                };
+                if self.tracks.push(new).is_err() {
+                    report.tracks_full += 1;
+                }
+            }
+        }
+        ambiguous
+    }
+
+    fn has_label(&self, label: MarkLabel) -> bool {
+        self.tracks.iter().any(|f| f.label == Some(label))
+    }
+
+    /// The disc model of a turning track taken as the reference.
+    fn disc_of(&self, track: &Track) -> Option<DiscImage> {
+        let model = track.whole.model(MEASURE_ARC_RAD)?;
+        let (major, minor) = axes(model.a_px, model.b_px);
+        if major.is_nan() || major <= 0.0 {
+            return None;
+        }
+        Some(DiscImage {
+            centre_px: model.centre_px,
+            a_px: model.a_px,
+            b_px: model.b_px,
+            radius_px: model.radius_px(),
+            scale_px_per_m: major / self.settings.reference_radius_m,
+            aspect: minor / major,
+        })
+    }
+
+    /// A track turning with the disc: measured and explained by its fit.
+    fn turning(followed: &Followed) -> bool {
+        let track = &followed.track;
+        !followed.on_arm
+            && track.hits >= MIN_HITS
+            && track.fit.model(PREDICT_ARC_RAD).is_some_and(|m| {
+                m.rms_px <= disc_rms_px(m.radius_px()) && m.radius_px() >= MIN_TURNING_PX
+            })
+    }
+
+    fn in_band(measured: f64, expected: f64, tolerance: f64) -> bool {
+        measured >= expected / tolerance && measured <= expected * tolerance
+    }
+
+    fn find_reference(&mut self, theta: f64) {
+        let d = self.settings.diameters;
+        if let Some(reference) = self
+            .tracks
+            .iter()
+            .find(|f| f.label == Some(MarkLabel::Reference))
+        {
+            if let Some(disc) = self.disc_of(&reference.track) {
+                self.disc = Some(disc);
+            }
+            return;
+        }
+        let mut chosen: Option<usize> = None;
+        let mut consistent = 0;
+        for (i, candidate) in self.tracks.iter().enumerate() {
+            if !Self::turning(candidate) {
+                continue;
+            }
+            let Some(disc) = self.disc_of(&candidate.track) else {
+                continue;
+            };
+            if !Self::in_band(
+                disc.diameter_m(candidate.track.mean_area_px()),
+                d.reference_m,
+                SIZE_TOLERANCE,
+            ) {
+                continue;
+            }
+            // A known disc: the reference is where the reference was.
+            if let Some(known) = &self.disc {
+                let Some(p) = known.rotating(
+                    candidate.track.latest.1,
+                    candidate.track.latest.0,
+                    self.settings.reference_radius_m,
+                ) else {
+                    continue;
+                };
+                let off = libm::hypot(p[0] - self.settings.reference_radius_m, p[1]);
+                if off > 0.1 * self.settings.reference_radius_m {
+                    continue;
+                }
+            }
+            // Its path turns about a still mark of the centre mark's size.
+            let gate = (CENTRE_GATE_SHARE * disc.radius_px).max(CENTRE_GATE_MIN_PX);
+            let whole_fits = candidate
+                .track
+                .whole
+                .model(MEASURE_ARC_RAD)
+                .is_some_and(|m| m.rms_px <= 2.0 * disc_rms_px(m.radius_px()));
+            let centred = self.tracks.iter().any(|other| {
+                self.still(other)
+                    && Self::in_band(
+                        disc.diameter_m(other.track.mean_area_px()),
+                        d.disc_centre_m,
+                        SIZE_TOLERANCE,
+                    )
+                    && libm::hypot(
+                        other.track.latest.1[0] - disc.centre_px[0],
+                        other.track.latest.1[1] - disc.centre_px[1],
+                    ) <= gate
+            });
+            if !whole_fits || !centred {
+                continue;
+            }
+            let mut features = 0;
+            let mut inside = true;
+            for other in self.tracks.iter() {
+                if core::ptr::eq(other, candidate) || !Self::turning(other) {
+                    continue;
+                }
+                let Some(model) = other.track.fit.model(PREDICT_ARC_RAD) else {
+                    continue;
+                };
+                let radius_m =
+                    model.radius_px() / disc.radius_px * self.settings.reference_radius_m;
+                if radius_m > self.settings.disc_radius_m * DISC_MARGIN {
+                    inside = false;
+                }
+                // Sizes by flux against the candidate's (see `find_features`).
+                let flux_ratio = other.track.mean_flux() / candidate.track.mean_flux().max(1e-9);
+                let by_flux = d.reference_m * libm::sqrt(flux_ratio.max(0.0));
+                if Self::in_band(by_flux, d.part_feature_m, FLUX_SIZE_TOLERANCE)
+                    && Self::in_band(
+                        disc.diameter_m(other.track.mean_area_px()),
+                        d.part_feature_m,
+                        SIZE_TOLERANCE,
+                    )
+                {
+                    features += 1;
+                }
+            }
+            if inside && features <= self.settings.part_feature_count {
+                consistent += 1;
+                chosen = Some(i);
+            }
+        }
+        let _ = theta;
+        if consistent == 1 {
+            if let Some(followed) = chosen.and_then(|i| self.tracks.get_mut(i)) {
+                followed.label = Some(MarkLabel::Reference);
+            }
+            if let Some(track) = chosen.and_then(|i| self.tracks.get(i)).map(|f| f.track) {
+                self.disc = self.disc_of(&track).or(self.disc);
+            }
+        }
+    }
+
+    /// A track at rest while the disc turned.
+    fn still(&self, f: &Followed) -> bool {
+        !f.on_arm
+            && f.track.hits >= MIN_HITS
+            && f.track
+                .whole
+                .model(MEASURE_ARC_RAD)
+                .is_some_and(|m| m.radius_px() <= STILL_PX && m.rms_px <= DISC_RMS_PX)
+    }
+
+    fn find_centre(&mut self) {
+        let Some(disc) = self.disc else {
+            return;
+        };
+        if self.has_label(MarkLabel::DiscCentre) {
+            return;
+        }
+        let gate = (CENTRE_GATE_SHARE * disc.radius_px).max(CENTRE_GATE_MIN_PX);
+        let mut chosen = None;
+        let mut count = 0;
+        for (i, f) in self.tracks.iter().enumerate() {
+            if f.label.is_some() || !self.still(f) {
+                continue;
+            }
+            let p = f.track.latest.1;
+            let near = libm::hypot(p[0] - disc.centre_px[0], p[1] - disc.centre_px[1]) <= gate;
+            let sized = Self::in_band(
+                disc.diameter_m(f.track.mean_area_px()),
+                self.settings.diameters.disc_centre_m,
+                SIZE_TOLERANCE,
+            );
+            if near {
+                count += 1;
+                if sized {
+                    chosen = Some(i);
+                }
+            }
+        }
+        if count == 1 {
+            if let Some(f) = chosen.and_then(|i| self.tracks.get_mut(i)) {
+                f.label = Some(MarkLabel::DiscCentre);
+            }
+        }
+    }
+
+    fn find_features(&mut self, theta: f64) {
+        let Some(disc) = self.disc else {
+            return;
+        };
+        let l = self.settings.reference_radius_m;
+        let expected = self.settings.diameters.part_feature_m;
+        let reference_flux = self
+            .tracks
+            .iter()
+            .find(|f| f.label == Some(MarkLabel::Reference))
+            .map(|f| f.track.mean_flux())
+            .filter(|&x| x > 0.0)
+            .or(self.reference_flux);
+        self.reference_flux = reference_flux;
+        let mut candidates: Vec<(usize, [f64; 2]), MAX_TRACKS> = Vec::new();
+        for (i, f) in self.tracks.iter().enumerate() {
+            if f.label.is_some() || f.blob.is_none() || !Self::turning(f) {
+                continue;
+            }
+            if !Self::in_band(
+                disc.diameter_m(f.track.mean_area_px()),
+                expected,
+                SIZE_TOLERANCE,
+            ) {
+                continue;
+            }
+            // The light it sends against the reference mark's: blur spreads
+            // a small mark's image but keeps its flux.
+            if let Some(reference_flux) = reference_flux {
+                let d = self.settings.diameters.reference_m
+                    * libm::sqrt((f.track.mean_flux() / reference_flux).max(0.0));
+                if !Self::in_band(d, expected, FLUX_SIZE_TOLERANCE) {
+                    continue;
+                }
+            }
+            if let Some(p) = disc.rotating(f.track.latest.1, theta, l) {
+                if libm::hypot(p[0], p[1]) <= self.settings.disc_radius_m * DISC_MARGIN {
+                    let _ = candidates.push((i, p));
+                }
+            }
+        }
+        let count = self.settings.part_feature_count;
+        if self.features_rotating.is_empty() {
+            let unlabelled_features = !self
+                .tracks
+                .iter()
+                .any(|f| matches!(f.label, Some(MarkLabel::PartFeature(_))));
+            // The order is stored once: only from tracks followed long
+            // enough for their sizes to be well measured.
+            let settled = candidates.iter().all(|(i, _)| {
+                self.tracks
+                    .get(*i)
+                    .is_some_and(|f| f.track.hits >= SETTLED_HITS)
+            });
+            if candidates.len() != count || !unlabelled_features || !settled {
+                return;
+            }
+            // A fixed order: by angle about the disc centre, from the reference.
+            candidates.sort_unstable_by(|x, y| {
+                libm::atan2(x.1[1], x.1[0]).total_cmp(&libm::atan2(y.1[1], y.1[0]))
+            });
+            for (k, (i, p)) in candidates.iter().enumerate() {
+                let _ = self.features_rotating.push(*p);
+                if let Some(f) = self.tracks.get_mut(*i) {
+                    f.label = Some(MarkLabel::PartFeature(k as u8));
+                }
+            }
+            return;
+        }
+        let mut spacing = f64::INFINITY;
+        for (k, p) in self.features_rotating.iter().enumerate() {
+            for q in self.features_rotating.iter().skip(k + 1) {
+                spacing = spacing.min(libm::hypot(p[0] - q[0], p[1] - q[1]));
+            }
+        }
+        let gate = FEATURE_GATE_SHARE * spacing;
+        // An anchor: a labelled feature seen now. A lost feature is looked
+        // for at its stored offset from the anchor (the disc model's errors
+        // and a slow drift of the part cancel between neighbours); without
+        // an anchor, none is taken back.
+        let anchor = self.tracks.iter().find_map(|f| match (f.label, f.blob) {
+            (Some(MarkLabel::PartFeature(j)), Some(_)) => {
+                let now = disc.rotating(f.track.latest.1, theta, l)?;
+                let stored = self.features_rotating.get(usize::from(j))?;
+                Some([now[0] - stored[0], now[1] - stored[1]])
+            }
+            _ => None,
+        });
+        let Some(shift) = anchor else {
+            return;
+        };
+        for (k, stored) in self.features_rotating.iter().enumerate() {
+            let label = MarkLabel::PartFeature(k as u8);
+            if self.tracks.iter().any(|f| f.label == Some(label)) {
+                continue;
+            }
+            let near: Vec<usize, MAX_TRACKS> = candidates
+                .iter()
+                .filter(|(_, p)| {
+                    libm::hypot(p[0] - stored[0] - shift[0], p[1] - stored[1] - shift[1]) <= gate
+                })
+                .map(|(i, _)| *i)
+                .collect();
+            if let [i] = near.as_slice() {
+                if let Some(f) = self.tracks.get_mut(*i) {
+                    f.label = Some(label);
+                }
+            }
+        }
+    }
+
+    fn find_effector(
+        &mut self,
+        points: &[Option<(PixelPoint, f64, f64)>],
+        ambiguous: &[bool],
+        effector_base_m: &[[f64; 3]; 2],
+    ) -> [Option<LabelledPoint>; 2] {
+        let mut found = [None, None];
+        if !effector_base_m.iter().flatten().all(|x| x.is_finite()) {
+            return found;
+        }
+        if self.projection.trusted(PROJECTION_RMS_PX) {
+            let predicted = [
+                self.projection.project(effector_base_m[0]),
+                self.projection.project(effector_base_m[1]),
+            ];
+            for (k, slot) in found.iter_mut().enumerate() {
+                let Some(Some(p)) = predicted.get(k) else {
+                    continue;
+                };
+                let mut near: Vec<usize, MAX_BLOBS> = Vec::new();
+                for (i, point) in points.iter().enumerate() {
+                    if let Some((q, _, _)) = point {
+                        let close = predicted.iter().flatten().any(|other| {
+                            !core::ptr::eq(other, p)
+                                && libm::hypot(q[0] - other[0], q[1] - other[1]) <= EFFECTOR_GATE_PX
+                        });
+                        if libm::hypot(q[0] - p[0], q[1] - p[1]) <= EFFECTOR_GATE_PX {
+                            let _ = near.push(i);
+                            if close {
+                                let _ = near.push(i);
+                            }
+                        }
+                    }
+                }
+                if let [i] = near.as_slice() {
+                    if ambiguous.get(*i).copied().unwrap_or(true) {
+                        continue;
+                    }
+                    if let Some(Some((q, _, _))) = points.get(*i) {
+                        *slot = Some(LabelledPoint {
+                            label: MarkLabel::Effector(k as u8),
+                            pixel: *q,
+                            blob: *i,
+                        });
+                    }
+                }
+            }
+            // Each labelled mark refines the projection, unless it spoils it.
+            let before = self.projection.clone();
+            for (k, point) in found.iter().enumerate() {
+                if let (Some(point), Some(base)) = (point, effector_base_m.get(k)) {
+                    self.projection.add(*base, point.pixel);
+                }
+            }
+            if found.iter().any(Option::is_some) {
+                self.projection.refit();
+                if !self.projection.trusted(PROJECTION_RMS_PX) {
+                    self.projection = before;
+                }
+            }
+            for f in self.tracks.iter_mut() {
+                let on_arm = found.iter().flatten().any(|p| f.blob == Some(p.blob));
+                if on_arm {
+                    f.on_arm = true;
+                    f.label = None;
+                }
+            }
+            return found;
+        }
+        // Bootstrap: exactly two blobs that no established track explains,
+        // both of an effector mark's size.
+        let Some(disc) = self.disc else {
+            return found;
+        };
+        let mut free: Vec<usize, MAX_BLOBS> = Vec::new();
+        for f in self.tracks.iter() {
+            if let Some(i) = f.blob {
+                if f.track.hits <= 2 && f.label.is_none() {
+                    let _ = free.push(i);
+                }
+            }
+        }
+        if let [i, j] = free.as_slice() {
+            let (Some(Some((p, area_p, _))), Some(Some((q, area_q, _)))) =
+                (points.get(*i), points.get(*j))
+            else {
+                return found;
+            };
+            let sized = |area: f64, k: usize| {
+                let expected = self
+                    .settings
+                    .diameters
+                    .effector_m
+                    .get(k)
+                    .copied()
+                    .unwrap_or(0.0);
+                Self::in_band(disc.diameter_m(area), expected, EFFECTOR_SIZE_TOLERANCE)
+            };
+            let sized_either = |area: f64| sized(area, 0) || sized(area, 1);
+            if sized_either(*area_p) && sized_either(*area_q) {
+                if self.pairs.is_full() {
+                    self.pairs.remove(0);
+                }
+                let _ = self.pairs.push((*effector_base_m, [*p, *q]));
+                self.solve_pairs();
+            }
+        }
+        found
+    }
+}
+
+#[cfg(test)]
+mod tests;
