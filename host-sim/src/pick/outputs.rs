@@ -154,7 +154,7 @@ mod tests {
         assert!(phases[1].starts_with("SearchEffector,0,"));
 
         let calibration = lines(&dir.join("calibration.csv"));
-        assert_eq!(calibration.len(), 1 + 16);
+        assert_eq!(calibration.len(), 1 + 19);
         assert_eq!(
             calibration[0],
             "calibration,t_s,quantity,estimate,truth,error,sigma"
