@@ -174,13 +174,7 @@ pub fn record_pick(
             return Err(EnoughFrames.into());
         }
         let camera = world.camera().camera();
-        if renderer.is_none() {
-            renderer = Some(Renderer::new(camera, &settings)?);
-        }
-        let Some(renderer) = renderer.as_mut() else {
-            return Ok(());
-        };
-        renderer.follow(camera)?;
+        let renderer = Renderer::ready(&mut renderer, camera, &settings)?;
         let scene = build_scene(
             world.workcell(),
             &FrameState::from_world(world, exposure_s),

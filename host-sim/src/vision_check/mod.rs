@@ -223,13 +223,7 @@ pub fn run_trial(experiment: &PickExperiment, seed: u64, options: &CheckOptions)
                 return Ok(());
             }
             let camera = world.camera().camera();
-            if renderer.is_none() {
-                renderer = Some(Renderer::new(camera, &settings)?);
-            }
-            let Some(renderer) = renderer.as_mut() else {
-                return Ok(());
-            };
-            renderer.follow(camera)?;
+            let renderer = Renderer::ready(&mut renderer, camera, &settings)?;
             let started = thread_cpu_s();
             let scene = build_scene(
                 world.workcell(),

@@ -106,6 +106,22 @@ impl Renderer {
         Ok(())
     }
 
+    /// The renderer in `slot` made ready for `camera`: built on first use
+    /// (the camera is known only once the world runs), rebuilt if it moved.
+    pub fn ready<'a>(
+        slot: &'a mut Option<Self>,
+        camera: &PinholeCamera,
+        settings: &ImageSettings,
+    ) -> Result<&'a mut Self> {
+        match slot {
+            Some(renderer) => {
+                renderer.follow(camera)?;
+                Ok(renderer)
+            }
+            None => Ok(slot.insert(Self::new(camera, settings)?)),
+        }
+    }
+
     pub fn camera(&self) -> &LensCamera {
         self.rays.camera()
     }

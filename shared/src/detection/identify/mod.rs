@@ -292,17 +292,7 @@ impl Identifier {
         let mut second = f64::INFINITY;
         for assignment in 0u32..(1u32 << (n - 1)) {
             self.projection.clear();
-            for (k, (base, pixels)) in self.pairs.iter().enumerate() {
-                let swap = k > 0 && (assignment >> (k - 1)) & 1 == 1;
-                let [a, b] = if swap {
-                    [pixels[1], pixels[0]]
-                } else {
-                    *pixels
-                };
-                self.projection.add(base[0], a);
-                self.projection.add(base[1], b);
-            }
-            let rms = self.projection.refit().unwrap_or(f64::INFINITY);
+            let rms = self.fit_assignment(assignment).unwrap_or(f64::INFINITY);
             match best {
                 Some((_, b)) if rms >= b => second = second.min(rms),
                 _ => {
@@ -320,6 +310,14 @@ impl Identifier {
         if rms > PROJECTION_RMS_PX || second < PAIR_MARGIN * rms.max(0.05) {
             return;
         }
+        self.fit_assignment(assignment);
+        self.pairs.clear();
+    }
+
+    /// Adds every stored pair to the projection, the pairs whose bit of
+    /// `assignment` is set (bit k - 1 for pair k; pair 0 fixes the naming)
+    /// with their blobs swapped, and refits: the fit's RMS, px.
+    fn fit_assignment(&mut self, assignment: u32) -> Option<f64> {
         for (k, (base, pixels)) in self.pairs.iter().enumerate() {
             let swap = k > 0 && (assignment >> (k - 1)) & 1 == 1;
             let [a, b] = if swap {
@@ -330,8 +328,7 @@ impl Identifier {
             self.projection.add(base[0], a);
             self.projection.add(base[1], b);
         }
-        self.projection.refit();
-        self.pairs.clear();
+        self.projection.refit()
     }
 
     /// Bytes of the identifier's state (all of its working memory).
