@@ -96,16 +96,15 @@ impl Adoption {
                 if !due {
                     return;
                 }
-                *next_at_frame =
-                    if calibrator.estimate().is_ok() && calibrator.adopt_last_estimate() {
-                        offered.saturating_mul(2)
-                    } else {
-                        offered.saturating_add(64)
-                    };
+                *next_at_frame = if calibrator.estimate_and_adopt() {
+                    offered.saturating_mul(2)
+                } else {
+                    offered.saturating_add(64)
+                };
             }
             Self::AfterFrames(points) => {
-                if points.contains(&offered) && calibrator.estimate().is_ok() {
-                    calibrator.adopt_last_estimate();
+                if points.contains(&offered) {
+                    calibrator.estimate_and_adopt();
                 }
             }
         }

@@ -168,6 +168,82 @@ fn without_an_adopted_estimate_nothing_is_folded() {
     assert_eq!(information.points(), 0);
 }
 
+/// A fast camera fills the store long before the arm shows its marks (a
+/// 30 Hz camera fills 256 frames in 8.5 s of the search): the calibrator
+/// adopts the camera and the part alone when its store is about to thin
+/// (`estimate_and_adopt`, the pick worker's rule), so those frames are folded,
+/// not lost, and the base is placed by the first estimate that has sightings.
+#[test]
+fn frames_before_any_sighting_are_folded_at_a_camera_only_estimate() {
+    for seed in [730, 731, 732] {
+        let (workcell, mut frames) = recorded(seed);
+        // No sighting in the first 1,200 frames (two turns).
+        frames
+            .iter_mut()
+            .take(1200)
+            .for_each(|frame| frame.effector = None);
+        let full = every_frame(&workcell, &frames);
+        let mut calibrator = Small::new(&workcell.header(), CalibrationConfig::default()).unwrap();
+        let mut camera_only_at = None;
+        for (index, frame) in frames.iter().enumerate() {
+            calibrator.push(frame).unwrap();
+            if calibrator.about_to_thin() {
+                assert!(calibrator.estimate_and_adopt(), "seed {seed} frame {index}");
+                camera_only_at.get_or_insert(index);
+            }
+            // The pick's preliminary estimate, once the marks have been seen.
+            if index == 1600 {
+                calibrator.estimate().unwrap();
+                assert!(calibrator.adopt_last_estimate());
+            }
+        }
+        // Adopted when the store filled, the base unplaced: no sighting yet.
+        assert_eq!(camera_only_at, Some(255), "seed {seed}");
+        let (folded, sigma) = calibrator.estimate_with_uncertainty().unwrap();
+        let information = calibrator.folded().unwrap();
+        assert!(information.frames() > 1900, "{}", information.frames());
+        // Of the 150 sightings after frame 1,200, those leaving the store after the
+        // base was placed (frame 1,600).
+        assert!(information.sightings() > 60, "{}", information.sightings());
+        let part_gap = distance(folded.part.position_m, full.part.position_m);
+        let base_gap = distance(
+            folded.base_from_disc.translation_m,
+            full.base_from_disc.translation_m,
+        );
+        let norm = |v: [f64; 3]| v.iter().map(|s| s * s).sum::<f64>().sqrt();
+        eprintln!(
+            "seed {seed}: part gap {:.3} mm (sigma {:.3}), base gap {:.3} mm (sigma {:.3})",
+            part_gap * 1e3,
+            norm(sigma.part_position_m) * 1e3,
+            base_gap * 1e3,
+            norm(sigma.base_translation_m) * 1e3
+        );
+        assert!(part_gap < 0.25 * norm(sigma.part_position_m), "seed {seed}");
+        assert!(
+            base_gap < 0.25 * norm(sigma.base_translation_m),
+            "seed {seed}"
+        );
+    }
+}
+
+/// Nothing to adopt: without reference detections over enough of a turn the
+/// camera-only estimate is refused, and nothing is adopted.
+#[test]
+fn a_camera_only_estimate_needs_the_disc_to_have_turned() {
+    let (workcell, frames) = recorded(733);
+    let mut calibrator =
+        SelfCalibrator::<16, 8>::new(&workcell.header(), CalibrationConfig::default()).unwrap();
+    for frame in frames.iter().take(16) {
+        let mut frame = frame.clone();
+        frame.effector = None;
+        calibrator.push(&frame).unwrap();
+    }
+    // 16 frames of 2,400 over four turns: a fortieth of a turn.
+    assert!(calibrator.about_to_thin());
+    assert!(!calibrator.estimate_and_adopt());
+    assert!(calibrator.folded().is_none());
+}
+
 /// An estimate adopted too early (100 frames, a sixth of a turn: a wrong optimum,
 /// 27 cm off) has its folded frames pull towards it; the calibrator finds them
 /// inconsistent with the later data, discards them and recovers.

@@ -13,7 +13,7 @@ use shared::observation::CalibrationResult;
 
 use super::metrics::{compare, ErrorMetrics};
 use crate::batch_ml::batch_estimate;
-use crate::calibration::{calibrate_log, part_sigmas_m};
+use crate::calibration::{calibrate_log_with, part_sigmas_m, Adoption, CalibratorChoice};
 use crate::recording::simulate;
 use crate::scenario::Scenario;
 
@@ -90,6 +90,8 @@ pub struct HarnessOptions {
     pub disc_height_known: bool,
     /// Also run the batch maximum-likelihood solve, started from the refined estimate.
     pub batch: bool,
+    /// Which calibrator the logs are streamed into (the host's or the pick's).
+    pub calibrator: CalibratorChoice,
 }
 
 fn splitmix64(mut x: u64) -> u64 {
@@ -160,7 +162,14 @@ pub fn run_trial(plan: &TrialPlan, options: &HarnessOptions) -> TrialOutcome {
         },
         ..options.calibration
     };
-    match calibrate_log(&run.log, config) {
+    let calibration = calibrate_log_with(
+        options.calibrator,
+        Adoption::default(),
+        &run.log,
+        run.log.frames.len(),
+        config,
+    );
+    match calibration {
         Ok(calibration) => TrialOutcome {
             batch: options.batch.then(|| match &calibration.refined {
                 Ok(start) => batch_estimate(&run.log, &config, start)

@@ -10,6 +10,7 @@ use shared::calibration::CalibrationConfig;
 use crate::accuracy::harness::{plan_trials, run_trials, HarnessOptions};
 use crate::accuracy::report::{markdown, write_outputs};
 use crate::accuracy::summary::summarise;
+use crate::calibration::CalibratorChoice;
 use crate::scenario::{Scenario, SCENARIO_NAMES};
 
 /// Monte-Carlo accuracy of the self-calibration over random workcells.
@@ -33,6 +34,12 @@ pub struct Args {
     /// 1024 stored frames); named `paper/frames-N`, same workcells as `paper`.
     #[arg(long, value_delimiter = ',', num_args = 0..)]
     pub frame_counts: Vec<usize>,
+    /// Paper-scenario variants calibrated over this many revolutions at the
+    /// same frame rate (comma-separated; e.g. 1,2,4,8): frames, travel and
+    /// sightings grow with the time; named `paper/turns-N`, same workcells as
+    /// `paper`. The error against calibration time.
+    #[arg(long, value_delimiter = ',', num_args = 0..)]
+    pub turns: Vec<usize>,
     /// Experiment 2 of the paper: tell the estimator the true disc height in the base frame.
     #[arg(long)]
     pub disc_height_known: bool,
@@ -40,6 +47,11 @@ pub struct Args {
     /// (started from the calibrator's estimate) and report its errors beside the calibrator's.
     #[arg(long)]
     pub batch: bool,
+    /// The calibrator the logs are streamed into: the host's (1024 frames,
+    /// 256 sightings) or the pick controller's own (256 frames, 128
+    /// sightings, as on the firmware); both fold what they have no room for.
+    #[arg(long, value_enum, default_value_t = CalibratorChoice::Host)]
+    pub calibrator: CalibratorChoice,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -67,11 +79,20 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             .iter()
             .map(|&count| Scenario::paper().with_frames(count)),
     );
+    if args.turns.contains(&0) {
+        anyhow::bail!("--turns: 0 revolutions cannot be calibrated");
+    }
+    scenarios.extend(
+        args.turns
+            .iter()
+            .map(|&turns| Scenario::paper().over_turns(turns)),
+    );
     let plans = plan_trials(&scenarios, args.trials, args.seed);
     let options = HarnessOptions {
         calibration: CalibrationConfig::default(),
         disc_height_known: args.disc_height_known,
         batch: args.batch,
+        calibrator: args.calibrator,
     };
 
     let mut pool = rayon::ThreadPoolBuilder::new();
@@ -90,8 +111,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     progress.finish_and_clear();
 
     let rows = summarise(&outcomes);
+    let estimator = match args.calibrator {
+        CalibratorChoice::Host => "shared::calibration::HostCalibrator",
+        CalibratorChoice::Pick => "shared::app::pick::PickCalibrator",
+    };
     let mut notes = vec![format!(
-        "Estimator: `shared::calibration::HostCalibrator` with {:?}.",
+        "Estimator: `{estimator}` with {:?}.",
         options.calibration
     )];
     if args.batch {

@@ -17,6 +17,7 @@
 use shared::app::pick::cell::Cell;
 use shared::app::pick::estimate::CellEstimate;
 use shared::app::pick::handoff::{JobOutcome, JobRequest, VisionNews, WorkItem};
+use shared::app::pick::worker::adopt_before_thinning;
 use shared::app::pick::PickCalibrator;
 use shared::calibration::{CalibrationConfig, CalibrationError, EstimateUncertainty};
 use shared::observation::{CalibrationResult, LogHeader, ObservationFrame};
@@ -56,7 +57,8 @@ pub struct WorkerLog {
     /// Every estimate job, in order.
     pub estimates: Vec<EstimateJob>,
     /// The observations the worker had been given when it adopted an
-    /// estimate (each estimate it used: from then on its calibrator folds
+    /// estimate (each estimate it used, and the one it adopts when a store
+    /// fills before the pick has estimated: from then on its calibrator folds
     /// what it has no room for at that estimate). A replay adopts there too.
     pub adopted_after_frames: Vec<usize>,
     /// Observations whose refusal by the twin and by the worker disagreed
@@ -123,10 +125,17 @@ impl WorkerTap {
         };
         match item {
             WorkItem::Observation(frame) => {
-                if log.twin.push(frame).is_err() {
+                let accepted = log.twin.push(frame).is_ok();
+                if !accepted {
                     log.refused.push(log.frames.len());
                 }
                 log.frames.push(frame.clone());
+                // The worker adopts, as it absorbs the frame that fills a
+                // store, an estimate of what it holds (`absorb`): after this
+                // many frames.
+                if accepted && adopt_before_thinning(&mut log.twin) {
+                    log.adopted_after_frames.push(log.frames.len());
+                }
             }
             WorkItem::Job(ticket) => {
                 if let JobRequest::Estimate {

@@ -211,6 +211,22 @@ impl Scenario {
         }
     }
 
+    /// The same scenario run `turns` times as long at the same frame rate:
+    /// frames, conveyor travel and end-effector sightings all scale with the
+    /// time (a cell that goes on calibrating while it works: the arm shows its
+    /// marks each time it works over the disc). Named `paper/turns-N`, on the
+    /// family's workcells.
+    pub fn over_turns(self, turns: usize) -> Self {
+        Self {
+            name: format!("{}/turns-{turns}", self.name),
+            frames: self.frames.saturating_mul(turns),
+            revolutions: self.revolutions * turns as f64,
+            effector_frames_min: self.effector_frames_min.saturating_mul(turns),
+            effector_frames_max: self.effector_frames_max.saturating_mul(turns),
+            ..self
+        }
+    }
+
     /// The same scenario with the end effector seen in exactly `count` frames.
     pub fn with_effector_frames(self, count: usize) -> Self {
         Self {

@@ -65,10 +65,21 @@ impl PickWorker {
     /// frame lies under the bundle adjustment (the deepest stack, under both
     /// interrupt levels) and a frame is the union of everything inlined into
     /// it, so the observation's and the plan's temporaries stay out of it.
+    ///
+    /// When this frame fills a store before the pick has adopted an estimate
+    /// (a camera of 30 Hz fills 256 frames in 8.5 s, long before the search
+    /// ends), the worker estimates the camera and the part from what it holds
+    /// and adopts that, so that the frames that follow are folded rather than
+    /// thinned away (issue 20: three frames in four of the search were lost).
+    /// On the board this one frame then costs an estimate; at the paper's 5 Hz
+    /// the stores fill after the pick's own estimates, and it never happens.
     #[inline(never)]
     fn absorb(&mut self, observation: &ObservationFrame) -> Option<VisionNews> {
         match self.calibrator.push(observation) {
-            Ok(()) => None,
+            Ok(()) => {
+                adopt_before_thinning(&mut self.calibrator);
+                None
+            }
             Err(_) => Some(VisionNews::Refused),
         }
     }
@@ -197,4 +208,13 @@ impl PickWorker {
             Err(FaultCause::PartOutOfReach)
         }
     }
+}
+
+/// The worker's rule for a calibrator fed before anyone asked for an
+/// estimate: when its next frame or sighting would be thinned away, it
+/// estimates and adopts (see [`PickWorker::absorb`]). True when it adopted.
+/// Public so that a host replaying the worker's input applies the same rule
+/// at the same frames.
+pub fn adopt_before_thinning(calibrator: &mut PickCalibrator) -> bool {
+    calibrator.about_to_thin() && calibrator.estimate_and_adopt()
 }

@@ -5,7 +5,7 @@
 
 use nalgebra::{Vector2, Vector3};
 
-use super::SelfCalibrator;
+use super::{BaseUnplaced, SelfCalibrator};
 use crate::calibration::effector::{depth_roots, BaseFromDiscFit, DepthRoots};
 use crate::calibration::error::CalibrationError;
 use crate::calibration::homography::{pose_from_plane, PlanePoint, PlanePose};
@@ -79,7 +79,10 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
     // Never inlined: its working set (homography, conic, Eqs 3 to 15) is not
     // on the stack while the bundle adjustment runs (firmware stack budget).
     #[inline(never)]
-    pub(super) fn initial_model(&self) -> Result<WorkcellModel, CalibrationError> {
+    pub(super) fn initial_model(
+        &self,
+        unplaced: BaseUnplaced,
+    ) -> Result<WorkcellModel, CalibrationError> {
         self.check_reference_count()?;
         self.check_rotation_span()?;
         self.check_reference_spread()?;
@@ -109,7 +112,14 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
         let (disc_from_camera, camera_centre_disc) =
             disc_from_virtual(&geometry.rotation, geometry.gamma);
         let features = self.locate_features(&geometry)?;
-        let (base_yaw, base_translation) = self.locate_base(&geometry)?;
+        // Without a sighting, stored or folded, nothing places the base: the
+        // refinement holds it, so any start will do.
+        let unplaced_held = unplaced == BaseUnplaced::HoldIt && !self.base_observed();
+        let (base_yaw, base_translation) = if unplaced_held {
+            (0.0, Vector3::zeros())
+        } else {
+            self.locate_base(&geometry)?
+        };
         Ok(WorkcellModel {
             disc_from_camera,
             camera_centre_disc,

@@ -27,7 +27,7 @@ use super::frame_store::{FrameStore, FULL_FRAME_PIXELS};
 use super::model::WorkcellModel;
 use super::pinhole::Pinhole;
 use super::records::EffectorRecord;
-use super::refine::{refine, Problem};
+use super::refine::{refine, Problem, Refined};
 use super::store::ThinningStore;
 use super::uncertainty::EstimateUncertainty;
 use crate::angle::wrap_pi;
@@ -75,6 +75,16 @@ pub struct SelfCalibrator<
     folded: Option<FoldedInformation>,
     /// Times the folded information was found inconsistent and dropped.
     folds_discarded: u32,
+}
+
+/// What an estimate does when no sighting places `base_from_disc` yet.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum BaseUnplaced {
+    /// Refuses: the caller needs the base (Eqs 10 to 15).
+    Refuse,
+    /// Holds it where it stands (the base's parameters are then not
+    /// estimated, see `refine::freedom`): the camera and the part alone.
+    HoldIt,
 }
 
 /// A small instance: 96 frames, 16 effector sightings (9 696 B on x86-64).
@@ -208,23 +218,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
     pub fn estimate_with_uncertainty(
         &mut self,
     ) -> Result<(CalibrationResult, EstimateUncertainty), CalibrationError> {
-        let initial = self.initial_model()?;
-        let mut refined = refine(&self.problem(), initial, &self.config)?;
-        let inconsistent = self
-            .folded
-            .as_ref()
-            .is_some_and(|folded| !folded.consistent_with(&refined.model, refined.pixel_sigma_px));
-        if inconsistent {
-            self.folded = None;
-            self.folds_discarded = self.folds_discarded.saturating_add(1);
-            refined = refine(&self.problem(), initial, &self.config)?;
-        }
-        let sigma = refined.pixel_sigma_px;
-        let loss = FoldLoss {
-            huber_px: self.config.huber_k * sigma,
-            gate_px: self.config.outlier_gate_sigma * sigma.max(self.config.pixel_sigma),
-        };
-        self.last_estimate = Some((refined.model, loss, self.base_observed()));
+        let refined = self.refine_stored(BaseUnplaced::Refuse)?;
         let geometry = refined.model.grasp_geometry();
         let uncertainty = refined
             .covariance
@@ -242,6 +236,50 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
             ),
             uncertainty,
         ))
+    }
+
+    /// Estimates from what is stored and adopts the estimate
+    /// ([`SelfCalibrator::adopt_last_estimate`]), the camera and the part
+    /// alone when no sighting places the base yet (the base is then held
+    /// and no sighting is folded until an estimate places it). For a caller
+    /// that must not lose what its stores have no room for: once they are
+    /// full, frames are folded at this estimate rather than thinned away.
+    /// False when no estimate could be made (nothing is adopted then).
+    pub fn estimate_and_adopt(&mut self) -> bool {
+        self.refine_stored(BaseUnplaced::HoldIt).is_ok() && self.adopt_last_estimate()
+    }
+
+    /// Whether the stores are full and nothing has been adopted: the next
+    /// frame or sighting would be thinned away, not folded. A calibrator fed
+    /// for a long time before anyone asks for an estimate (a 30 Hz camera
+    /// fills 256 frames in 8.5 s) calls [`SelfCalibrator::estimate_and_adopt`]
+    /// then.
+    pub fn about_to_thin(&self) -> bool {
+        self.folded.is_none() && self.stores_full()
+    }
+
+    /// The refined estimate from the stores and the folded information (the
+    /// folds dropped first when they disagree with it), remembered as the
+    /// last estimate for [`SelfCalibrator::adopt_last_estimate`].
+    fn refine_stored(&mut self, unplaced: BaseUnplaced) -> Result<Refined, CalibrationError> {
+        let initial = self.initial_model(unplaced)?;
+        let mut refined = refine(&self.problem(), initial, &self.config)?;
+        let inconsistent = self
+            .folded
+            .as_ref()
+            .is_some_and(|folded| !folded.consistent_with(&refined.model, refined.pixel_sigma_px));
+        if inconsistent {
+            self.folded = None;
+            self.folds_discarded = self.folds_discarded.saturating_add(1);
+            refined = refine(&self.problem(), initial, &self.config)?;
+        }
+        let sigma = refined.pixel_sigma_px;
+        let loss = FoldLoss {
+            huber_px: self.config.huber_k * sigma,
+            gate_px: self.config.outlier_gate_sigma * sigma.max(self.config.pixel_sigma),
+        };
+        self.last_estimate = Some((refined.model, loss, self.base_observed()));
+        Ok(refined)
     }
 
     /// Whether any sighting, stored or folded, constrains the base.
