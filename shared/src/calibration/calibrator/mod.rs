@@ -218,24 +218,25 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
     pub fn estimate_with_uncertainty(
         &mut self,
     ) -> Result<(CalibrationResult, EstimateUncertainty), CalibrationError> {
-        let refined = self.refine_stored(BaseUnplaced::Refuse)?;
-        let geometry = refined.model.grasp_geometry();
-        let uncertainty = refined
-            .covariance
-            .as_ref()
-            .map(|covariance| EstimateUncertainty::from_covariance(covariance, &geometry))
-            .ok_or(CalibrationError::NumericalFailure {
-                stage: "covariance of the estimate",
-            })?;
-        Ok((
-            self.result(
-                &refined.model,
-                refined.rms_px,
-                refined.outliers,
-                refined.pixel_sigma_px,
-            ),
-            uncertainty,
-        ))
+        self.refine_stored(BaseUnplaced::Refuse, |calibrator, refined| {
+            let geometry = refined.model.grasp_geometry();
+            let uncertainty = refined
+                .covariance
+                .as_ref()
+                .map(|covariance| EstimateUncertainty::from_covariance(covariance, &geometry))
+                .ok_or(CalibrationError::NumericalFailure {
+                    stage: "covariance of the estimate",
+                })?;
+            Ok((
+                calibrator.result(
+                    &refined.model,
+                    refined.rms_px,
+                    refined.outliers,
+                    refined.pixel_sigma_px,
+                ),
+                uncertainty,
+            ))
+        })
     }
 
     /// Estimates from what is stored and adopts the estimate
@@ -246,7 +247,9 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
     /// full, frames are folded at this estimate rather than thinned away.
     /// False when no estimate could be made (nothing is adopted then).
     pub fn estimate_and_adopt(&mut self) -> bool {
-        self.refine_stored(BaseUnplaced::HoldIt).is_ok() && self.adopt_last_estimate()
+        self.refine_stored(BaseUnplaced::HoldIt, |_, _| Ok(()))
+            .is_ok()
+            && self.adopt_last_estimate()
     }
 
     /// Whether the stores are full and nothing has been adopted: the next
@@ -260,8 +263,16 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
 
     /// The refined estimate from the stores and the folded information (the
     /// folds dropped first when they disagree with it), remembered as the
-    /// last estimate for [`SelfCalibrator::adopt_last_estimate`].
-    fn refine_stored(&mut self, unplaced: BaseUnplaced) -> Result<Refined, CalibrationError> {
+    /// last estimate for [`SelfCalibrator::adopt_last_estimate`]; `finish`
+    /// reads it where it lies. Inlined into its two callers, and the large
+    /// [`Refined`] never moved: one copy in one frame (the firmware's deepest
+    /// stack lies under it).
+    #[inline(always)]
+    fn refine_stored<T>(
+        &mut self,
+        unplaced: BaseUnplaced,
+        finish: impl FnOnce(&Self, &Refined) -> Result<T, CalibrationError>,
+    ) -> Result<T, CalibrationError> {
         let initial = self.initial_model(unplaced)?;
         let mut refined = refine(&self.problem(), initial, &self.config)?;
         let inconsistent = self
@@ -279,7 +290,7 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
             gate_px: self.config.outlier_gate_sigma * sigma.max(self.config.pixel_sigma),
         };
         self.last_estimate = Some((refined.model, loss, self.base_observed()));
-        Ok(refined)
+        finish(self, &refined)
     }
 
     /// Whether any sighting, stored or folded, constrains the base.
