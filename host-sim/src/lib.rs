@@ -11,6 +11,8 @@
 //! - [`log`]: the observation log (JSON Lines) reader and writer.
 //! - [`link`]: links to the controller (in process, emulator UART over TCP, serial port) and the link check.
 //! - [`vision_check`]: the mark detector on rendered camera frames, against the truth.
+//! - [`live_camera`]: a V4L2 camera as a recording's source (frames; the `v4l2` feature).
+//! - [`overlay`]: pictures drawn over camera frames (PNG, animated GIF).
 //! - [`geometry`]: small geometric helpers with the contract's conventions.
 //! - [`homing`]: power-on homing trials against the drawn counter offsets.
 
@@ -23,7 +25,9 @@ pub mod front_end;
 pub mod geometry;
 pub mod homing;
 pub mod link;
+pub mod live_camera;
 pub mod log;
+pub mod overlay;
 pub mod pick;
 pub mod recording;
 pub mod scenario;

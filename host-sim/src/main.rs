@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use host_sim::commands::{
     accuracy, calibrate, calibration_demo, faults, free_run, homing, link_check, montecarlo,
-    record, record_images, run, vision_check, vision_log,
+    record, record_images, run, vision_check, vision_live, vision_log,
 };
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
@@ -53,6 +53,9 @@ enum Command {
     /// The vision front end: a camera recording in, the observation log out
     /// (detection, identification, undistortion); --score against its truth.
     VisionLog(vision_log::Args),
+    /// Grab frames from a V4L2 camera into a recording folder (built with the
+    /// `v4l2` feature); with --latches (the encoder values) a complete recording.
+    VisionLive(vision_live::Args),
 }
 
 fn main() -> ExitCode {
@@ -72,6 +75,7 @@ fn main() -> ExitCode {
         Some(Command::VisionCheck(args)) => vision_check::run(args),
         Some(Command::RecordImages(args)) => record_images::run(args),
         Some(Command::VisionLog(args)) => vision_log::run(args),
+        Some(Command::VisionLive(args)) => vision_live::run(args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

@@ -27,6 +27,7 @@ pub mod record;
 pub mod record_images;
 pub mod run;
 pub mod vision_check;
+pub mod vision_live;
 pub mod vision_log;
 
 /// The experiment `name` of the scenario file at `scenario` (the embedded

@@ -2,7 +2,8 @@
 //! recording, detects and labels each frame's marks and writes the
 //! observation log that `host-sim calibrate` reads; with `--score`, compares
 //! the labels with the recording's `truth.jsonl` (a simulated recording's;
-//! the front end itself never reads it).
+//! the front end itself never reads it); with `--pictures`, draws what it
+//! saw ([`crate::front_end::pictures`]).
 
 use std::path::PathBuf;
 
@@ -10,7 +11,9 @@ use anyhow::{Context, Result};
 
 use crate::camera_recording::simulate::read_truth;
 use crate::camera_recording::Recording;
-use crate::front_end::{run as run_front_end, score::score};
+use crate::front_end::pictures::{describe, write_pictures, PictureOptions};
+use crate::front_end::run as run_front_end;
+use crate::front_end::score::{score, Judge};
 use crate::log::write_log_file;
 
 /// Options of `host-sim vision-log`.
@@ -26,9 +29,28 @@ pub struct Args {
     /// (counted) instead of stopping at the first.
     #[arg(long)]
     pub skip_bad_frames: bool,
-    /// Score the labels against the recording's truth.jsonl (simulated recordings).
+    /// Score the labels against the recording's truth.jsonl (simulated
+    /// recordings); with `--pictures`, wrong labels are boxed in red.
     #[arg(long)]
     pub score: bool,
+    /// Write pictures of a stretch of frames with their blobs and labels
+    /// into this folder (PNG each, and labels.gif).
+    #[arg(long)]
+    pub pictures: Option<PathBuf>,
+    /// Frames in the pictures' stretch (25: 5 s at 5 Hz).
+    #[arg(long, default_value_t = 25, requires = "pictures")]
+    pub picture_frames: usize,
+    /// The stretch's first frame (from 0, of the frames read); default: the
+    /// stretch with the most wrong labels (with --score), then the most labels.
+    #[arg(long, requires = "pictures")]
+    pub first_frame: Option<usize>,
+    /// Enlargement of the pictures.
+    #[arg(long, default_value_t = 3, requires = "pictures")]
+    pub picture_scale: usize,
+    /// Write the PNGs with the animation's palette (32 greys and the
+    /// labels' colours): a fifth of the size, for pages.
+    #[arg(long, requires = "pictures")]
+    pub indexed_pictures: bool,
 }
 
 pub fn run(args: &Args) -> Result<()> {
@@ -53,10 +75,25 @@ pub fn run(args: &Args) -> Result<()> {
         count(&|f| f.effector.is_some()),
         outcome.ambiguous,
     );
-    if args.score {
+    let truth = if args.score {
         let truth = read_truth(&args.recording)?;
         let tally = score(&outcome.frames, &truth);
         eprintln!("{}", serde_json::to_string_pretty(&tally)?);
+        Some(truth)
+    } else {
+        None
+    };
+    if let Some(folder) = &args.pictures {
+        let judge = truth.as_deref().map(|t| Judge::new(&outcome.frames, t));
+        let options = PictureOptions {
+            folder: folder.clone(),
+            frames: args.picture_frames.max(1),
+            first_frame: args.first_frame,
+            scale: args.picture_scale.clamp(1, 8),
+            indexed: args.indexed_pictures,
+        };
+        let written = write_pictures(&recording, &outcome, judge.as_ref(), &options)?;
+        eprintln!("{}", describe(&written, folder));
     }
     Ok(())
 }

@@ -9,6 +9,7 @@
 //! the front end itself never reads it. With `FRONT_END_DEBUG` set in the
 //! environment, each frame's tracks and labels are printed to stderr.
 
+pub mod pictures;
 pub mod score;
 
 use anyhow::{Context, Result};
@@ -30,7 +31,8 @@ pub const TRACK_GATE_PX: f64 = 2.0;
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameLabels {
     pub trigger_id: u64,
-    pub blobs: usize,
+    /// The frame's detections (a point's `blob` indexes them).
+    pub blobs: Vec<Blob>,
     pub points: Vec<LabelledPoint>,
 }
 
@@ -227,7 +229,7 @@ pub fn run(recording: &Recording, skip_bad_images: bool) -> Result<FrontEndRun> 
         ));
         run.frames.push(FrameLabels {
             trigger_id: row.trigger_id,
-            blobs: blobs.len(),
+            blobs: blobs.to_vec(),
             points: points.to_vec(),
         });
     }

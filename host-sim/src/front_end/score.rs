@@ -7,7 +7,7 @@
 
 use std::collections::BTreeMap;
 
-use shared::detection::identify::MarkLabel;
+use shared::detection::identify::{LabelledPoint, MarkLabel};
 
 use super::FrameLabels;
 use crate::camera_recording::simulate::{TrueFrame, TrueMark};
@@ -46,51 +46,111 @@ fn class(label: MarkLabel) -> (&'static str, usize) {
     }
 }
 
-/// Scores `labels` (frames in order) against `truth` (by trigger id).
-pub fn score(labels: &[FrameLabels], truth: &[TrueFrame]) -> LabelScore {
-    let by_id: BTreeMap<u64, &TrueFrame> = truth.iter().map(|f| (f.trigger_id, f)).collect();
-    fn nearest(frame: &TrueFrame, p: [f64; 2]) -> Option<&TrueMark> {
-        nearest_within(frame, p, MATCH_PX)
-    }
-    fn nearest_within(frame: &TrueFrame, p: [f64; 2], limit: f64) -> Option<&TrueMark> {
-        frame
-            .marks
-            .iter()
-            .filter(|m| m.shows && m.pinhole_px.iter().all(|x| x.is_finite()))
-            .map(|m| (m, (m.pinhole_px[0] - p[0]).hypot(m.pinhole_px[1] - p[1])))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .filter(|(_, d)| *d <= limit)
-            .map(|(m, _)| m)
-    }
-    // Feature order: each feature label's most frequent true feature.
-    let mut votes: BTreeMap<(usize, usize), usize> = BTreeMap::new();
-    for frame in labels {
-        let Some(t) = by_id.get(&frame.trigger_id) else {
-            continue;
-        };
-        for p in &frame.points {
-            if let ("part_feature", k) = class(p.label) {
-                if let Some(m) = nearest(t, p.pixel).filter(|m| m.kind == "part_feature") {
-                    *votes.entry((k, m.index)).or_default() += 1;
+/// What one label is, against the truth.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// The nearest true mark within [`MATCH_PX`] is the one it names.
+    Right,
+    /// The mark it names, but its point more than [`MATCH_PX`] off.
+    Off,
+    /// Another mark, or none.
+    Wrong,
+}
+
+/// The truth by trigger id and the front end's feature order matched to
+/// the truth's: what judging one label needs.
+pub struct Judge<'a> {
+    by_id: BTreeMap<u64, &'a TrueFrame>,
+    /// Front-end feature label -> true feature index.
+    feature_map: BTreeMap<usize, usize>,
+}
+
+fn nearest_within(frame: &TrueFrame, p: [f64; 2], limit: f64) -> Option<&TrueMark> {
+    frame
+        .marks
+        .iter()
+        .filter(|m| m.shows && m.pinhole_px.iter().all(|x| x.is_finite()))
+        .map(|m| (m, (m.pinhole_px[0] - p[0]).hypot(m.pinhole_px[1] - p[1])))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .filter(|(_, d)| *d <= limit)
+        .map(|(m, _)| m)
+}
+
+fn nearest(frame: &TrueFrame, p: [f64; 2]) -> Option<&TrueMark> {
+    nearest_within(frame, p, MATCH_PX)
+}
+
+impl<'a> Judge<'a> {
+    /// Matches the feature labels of `labels` (frames in order) to the true
+    /// features of `truth`: each takes the one it most often lands on.
+    pub fn new(labels: &[FrameLabels], truth: &'a [TrueFrame]) -> Self {
+        let by_id: BTreeMap<u64, &TrueFrame> = truth.iter().map(|f| (f.trigger_id, f)).collect();
+        let mut votes: BTreeMap<(usize, usize), usize> = BTreeMap::new();
+        for frame in labels {
+            let Some(t) = by_id.get(&frame.trigger_id) else {
+                continue;
+            };
+            for p in &frame.points {
+                if let ("part_feature", k) = class(p.label) {
+                    if let Some(m) = nearest(t, p.pixel).filter(|m| m.kind == "part_feature") {
+                        *votes.entry((k, m.index)).or_default() += 1;
+                    }
                 }
             }
         }
-    }
-    let mut feature_map: BTreeMap<usize, usize> = BTreeMap::new();
-    for (&(k, index), &n) in &votes {
-        let best = votes
-            .iter()
-            .filter(|((kk, _), _)| *kk == k)
-            .map(|(_, &m)| m)
-            .max()
-            .unwrap_or(0);
-        if n == best {
-            feature_map.entry(k).or_insert(index);
+        let mut feature_map: BTreeMap<usize, usize> = BTreeMap::new();
+        for (&(k, index), &n) in &votes {
+            let best = votes
+                .iter()
+                .filter(|((kk, _), _)| *kk == k)
+                .map(|(_, &m)| m)
+                .max()
+                .unwrap_or(0);
+            if n == best {
+                feature_map.entry(k).or_insert(index);
+            }
         }
+        Self { by_id, feature_map }
     }
+
+    /// The truth of frame `trigger_id`, if it has one.
+    pub fn frame(&self, trigger_id: u64) -> Option<&'a TrueFrame> {
+        self.by_id.get(&trigger_id).copied()
+    }
+
+    /// The true mark's class and index that `label` names.
+    fn named(&self, label: MarkLabel) -> (&'static str, Option<usize>) {
+        let (kind, k) = class(label);
+        let index = if kind == "part_feature" {
+            self.feature_map.get(&k).copied()
+        } else {
+            Some(k)
+        };
+        (kind, index)
+    }
+
+    /// `point` of frame `trigger_id` against its truth (`None`: no truth
+    /// for that frame).
+    pub fn verdict(&self, trigger_id: u64, point: &LabelledPoint) -> Option<Verdict> {
+        let t = self.frame(trigger_id)?;
+        let (kind, index) = self.named(point.label);
+        let is_named = |m: &TrueMark| m.kind == kind && Some(m.index) == index;
+        Some(if nearest(t, point.pixel).is_some_and(is_named) {
+            Verdict::Right
+        } else if nearest_within(t, point.pixel, OFF_PX).is_some_and(is_named) {
+            Verdict::Off
+        } else {
+            Verdict::Wrong
+        })
+    }
+}
+
+/// Scores `labels` (frames in order) against `truth` (by trigger id).
+pub fn score(labels: &[FrameLabels], truth: &[TrueFrame]) -> LabelScore {
+    let judge = Judge::new(labels, truth);
     let mut score = LabelScore::default();
     for frame in labels {
-        let Some(t) = by_id.get(&frame.trigger_id) else {
+        let Some(t) = judge.frame(frame.trigger_id) else {
             continue;
         };
         score.frames += 1;
@@ -101,12 +161,7 @@ pub fn score(labels: &[FrameLabels], truth: &[TrueFrame]) -> LabelScore {
         {
             *score.visible.entry(m.kind.clone()).or_default() += 1;
             let labelled = frame.points.iter().any(|p| {
-                let (kind, k) = class(p.label);
-                let index = if kind == "part_feature" {
-                    feature_map.get(&k).copied()
-                } else {
-                    Some(k)
-                };
+                let (kind, index) = judge.named(p.label);
                 kind == m.kind && index == Some(m.index)
             });
             if !labelled {
@@ -115,32 +170,26 @@ pub fn score(labels: &[FrameLabels], truth: &[TrueFrame]) -> LabelScore {
         }
         for p in &frame.points {
             score.labels += 1;
-            let (kind, k) = class(p.label);
-            let index = if kind == "part_feature" {
-                feature_map.get(&k).copied()
-            } else {
-                Some(k)
-            };
-            let right =
-                nearest(t, p.pixel).is_some_and(|m| m.kind == kind && Some(m.index) == index);
-            let off = !right
-                && nearest_within(t, p.pixel, OFF_PX)
-                    .is_some_and(|m| m.kind == kind && Some(m.index) == index);
-            if off {
-                score.right_but_off += 1;
-            } else if right {
-                score.right += 1;
-                *score.right_by_class.entry(kind.to_string()).or_default() += 1;
-            } else {
-                score.mislabelled += 1;
-                if score.examples.len() < 10 {
-                    let near = nearest(t, p.pixel)
-                        .map(|m| format!("{} {}", m.kind, m.index))
-                        .unwrap_or_else(|| "nothing".into());
-                    score.examples.push(format!(
-                        "trigger {}: {:?} at ({:.1}, {:.1}) is {near}",
-                        frame.trigger_id, p.label, p.pixel[0], p.pixel[1]
-                    ));
+            match judge.verdict(frame.trigger_id, p) {
+                Some(Verdict::Off) => score.right_but_off += 1,
+                Some(Verdict::Right) => {
+                    score.right += 1;
+                    *score
+                        .right_by_class
+                        .entry(class(p.label).0.to_string())
+                        .or_default() += 1;
+                }
+                _ => {
+                    score.mislabelled += 1;
+                    if score.examples.len() < 10 {
+                        let near = nearest(t, p.pixel)
+                            .map(|m| format!("{} {}", m.kind, m.index))
+                            .unwrap_or_else(|| "nothing".into());
+                        score.examples.push(format!(
+                            "trigger {}: {:?} at ({:.1}, {:.1}) is {near}",
+                            frame.trigger_id, p.label, p.pixel[0], p.pixel[1]
+                        ));
+                    }
                 }
             }
         }
