@@ -80,6 +80,8 @@ fn folding_lands_on_the_every_frame_estimate() {
         let (folded, sigma) = folding.estimate_with_uncertainty().unwrap();
         let thinned = small(&workcell, &frames, None).estimate().unwrap();
 
+        // A still camera is never taken for one that creeps.
+        assert_eq!(folding.folds_discarded(), 0, "seed {seed}");
         // Nothing was thrown away: every frame past the store's 256 was folded.
         let information = folding.folded().unwrap();
         assert!(information.frames() > 1900, "{}", information.frames());
@@ -366,48 +368,52 @@ mod bad_input {
         assert_eq!(calibrator.folds_discarded(), 0);
     }
 
-    /// A camera whose mount creeps (1.5 degrees of tilt over the four turns) no longer
-    /// fits one pose: the folds taken before the creep disagree with the
-    /// optimum and are discarded, and the fit's residual shows the creep to
-    /// the pick's checks (2 px RMS or 8 % of the points gated refuse it).
+    /// A camera whose mount creeps (1.5, 0.5 or 0.25 degree of tilt over the
+    /// four turns) no longer fits one pose: the latest folded points leave the
+    /// optimum all one way, the folds are discarded and counted (the count
+    /// telemetry carries), while the same cell held still discards none. The
+    /// whole run's residual shows only the largest creep (0.7 px RMS still,
+    /// 0.8 px at 0.25 degree).
     #[test]
     fn a_camera_that_drifts_is_seen_not_averaged_away() {
         let mut rng = Rng::new(733);
         let scenario = long_run();
         let workcell = Workcell::random(&mut rng, scenario.feature_count, false);
         let frames = workcell.record(&mut rng, &scenario);
-        let (_, steady) = folded_estimate(&workcell, &frames);
-        let mut drifting_frames = Vec::new();
-        for (k, frame) in frames.iter().enumerate() {
-            let creep = 1.5_f64.to_radians() * k as f64 / frames.len() as f64;
-            let mut moved = workcell.clone();
-            moved.disc_from_camera = workcell.disc_from_camera
-                * nalgebra::Rotation3::from_axis_angle(&nalgebra::Vector3::x_axis(), creep);
-            let single = Scenario {
-                frames: 1,
-                effector_frames: usize::from(frame.effector.is_some()),
-                rotation_rad: 0.0,
-                ..scenario
-            };
-            let mut redrawn = moved.record_at(&mut rng, &single, frame.conveyor_angle_rad);
-            redrawn.t_s = frame.t_s;
-            drifting_frames.push(redrawn);
+        let (still, steady) = folded_estimate(&workcell, &frames);
+        assert_eq!(
+            still.folds_discarded(),
+            0,
+            "a still camera taken for a creep"
+        );
+        for creep_deg in [1.5_f64, 0.5, 0.25] {
+            let mut drifting_frames = Vec::new();
+            for (k, frame) in frames.iter().enumerate() {
+                let creep = creep_deg.to_radians() * k as f64 / frames.len() as f64;
+                let mut moved = workcell.clone();
+                moved.disc_from_camera = workcell.disc_from_camera
+                    * nalgebra::Rotation3::from_axis_angle(&nalgebra::Vector3::x_axis(), creep);
+                let single = Scenario {
+                    frames: 1,
+                    effector_frames: usize::from(frame.effector.is_some()),
+                    rotation_rad: 0.0,
+                    ..scenario
+                };
+                let mut redrawn = moved.record_at(&mut rng, &single, frame.conveyor_angle_rad);
+                redrawn.t_s = frame.t_s;
+                drifting_frames.push(redrawn);
+            }
+            let (calibrator, drifting) = folded_estimate(&workcell, &drifting_frames);
+            eprintln!(
+                "creep {creep_deg} deg: rms {:.2} px (still {:.2}), {} folds discarded",
+                drifting.quality.rms_reprojection_px,
+                steady.quality.rms_reprojection_px,
+                calibrator.folds_discarded()
+            );
+            assert!(
+                calibrator.folds_discarded() > 0,
+                "a creep of {creep_deg} deg went unnoticed"
+            );
         }
-        let (calibrator, drifting) = folded_estimate(&workcell, &drifting_frames);
-        let points = f64::from(drifting.quality.frames_used) * 5.0;
-        let gated = f64::from(drifting.quality.outliers_rejected) / points;
-        eprintln!(
-            "drift: rms {:.2} px (steady {:.2}), {:.1} % gated, {} folds discarded",
-            drifting.quality.rms_reprojection_px,
-            steady.quality.rms_reprojection_px,
-            gated * 100.0,
-            calibrator.folds_discarded()
-        );
-        assert!(
-            drifting.quality.rms_reprojection_px > 2.0
-                || gated > 0.08
-                || calibrator.folds_discarded() > 0,
-            "the drift went unnoticed"
-        );
     }
 }

@@ -62,6 +62,11 @@ pub struct TrialSummary {
     pub sigma_grasp_vertical_mm: f64,
     pub sigma_grasp_yaw_deg: f64,
     pub estimates: usize,
+    /// The last estimate's folding counts (`CalibrationReport`): frames
+    /// folded, and folds discarded (a camera that creeps, or folds taken at
+    /// a wrong estimate).
+    pub frames_folded: u32,
+    pub folds_discarded: u32,
 }
 
 fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
@@ -106,6 +111,8 @@ fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
         sigma_grasp_vertical_mm: sigma(|r| r.sigma_grasp_vertical_m, 1e3),
         sigma_grasp_yaw_deg: sigma(|r| r.sigma_grasp_yaw_rad, 180.0 / std::f64::consts::PI),
         estimates: run.calibrations.len(),
+        frames_folded: last.map_or(0, |report| report.frames_folded),
+        folds_discarded: last.map_or(0, |report| u32::from(report.folds_discarded)),
     }
 }
 
@@ -406,12 +413,12 @@ pub fn azimuth_table(summaries: &[TrialSummary]) -> String {
 /// Writes `trials.csv`: one line per trial.
 pub fn write_trials_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
     let mut text = String::from(
-        "trial,seed,result,success,estimate_error_x_mm,estimate_error_y_mm,estimate_error_z_mm,estimate_error_mm,estimate_yaw_error_deg,grasp_error_mm,grasp_yaw_error_deg,grasp_relative_speed_mm_s,calibrated_after_s,duration_s,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm,disc_azimuth_deg,disc_distance_m,disc_below_shoulder_m,final_part_in_base_mm,limit_part_in_base_mm,final_part_yaw_deg,limit_part_yaw_deg,sigma_grasp_horizontal_mm,sigma_grasp_vertical_mm,sigma_grasp_yaw_deg,estimates\n",
+        "trial,seed,result,success,estimate_error_x_mm,estimate_error_y_mm,estimate_error_z_mm,estimate_error_mm,estimate_yaw_error_deg,grasp_error_mm,grasp_yaw_error_deg,grasp_relative_speed_mm_s,calibrated_after_s,duration_s,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm,disc_azimuth_deg,disc_distance_m,disc_below_shoulder_m,final_part_in_base_mm,limit_part_in_base_mm,final_part_yaw_deg,limit_part_yaw_deg,sigma_grasp_horizontal_mm,sigma_grasp_vertical_mm,sigma_grasp_yaw_deg,estimates,frames_folded,folds_discarded\n",
     );
     for s in summaries {
         let _ = writeln!(
             text,
-            "{},{},\"{}\",{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.4},{:.4},{:.2},{:.2},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{}",
+            "{},{},\"{}\",{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.4},{:.4},{:.2},{:.2},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},{},{}",
             s.trial,
             s.seed,
             s.result.replace('"', "'"),
@@ -439,7 +446,9 @@ pub fn write_trials_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
             s.sigma_grasp_horizontal_mm,
             s.sigma_grasp_vertical_mm,
             s.sigma_grasp_yaw_deg,
-            s.estimates
+            s.estimates,
+            s.frames_folded,
+            s.folds_discarded
         );
     }
     fs::write(path, text).with_context(|| format!("writing {}", path.display()))

@@ -25,6 +25,7 @@ use super::model::{
 };
 use super::normal_blocks::{Increment, NormalBlocks};
 use super::pinhole::Pinhole;
+use super::recent_bias::RecentBias;
 use super::records::{EffectorRecord, FrameRecord};
 
 /// The folded observations' RMS residual at the optimum, in units of the measured
@@ -81,6 +82,9 @@ pub struct FoldedInformation {
     /// (px^2) where they were folded, over about [`RECENT_POINTS`]: what a
     /// camera that creeps away from the adopted estimate shows first.
     recent_mean_square: f64,
+    /// The latest folded points' mean residual vector, movable to any
+    /// estimate: what a camera that creeps shows first ([`super::recent_bias`]).
+    recent_bias: RecentBias,
     /// Frames and sightings folded.
     frames: u32,
     sightings: u32,
@@ -99,6 +103,7 @@ impl FoldedInformation {
             squares: 0.0,
             outliers: 0,
             recent_mean_square: 0.0,
+            recent_bias: RecentBias::new(),
             frames: 0,
             sightings: 0,
         }
@@ -153,6 +158,7 @@ impl FoldedInformation {
             self.outliers = self.outliers.saturating_add(1);
             return;
         }
+        self.recent_bias.add(&residual, &jacobian);
         self.blocks
             .accumulate(&jacobian.camera, &jacobian.other, &residual, weight);
         self.constant += 0.5 * weight * squared;
@@ -183,6 +189,7 @@ impl FoldedInformation {
     pub fn move_to(&mut self, model: &WorkcellModel, base_estimated: bool, loss: FoldLoss) {
         let d = self.offset(model);
         let shift = self.blocks.apply(&d);
+        self.recent_bias.move_by(&d);
         self.constant = self.cost(model);
         self.blocks.shift_gradient(&shift);
         self.at = *model;
@@ -198,7 +205,9 @@ impl FoldedInformation {
     /// linearised at a wrong estimate (a wrong start adopted, then moved away from):
     /// the quadratic then pulls towards where it was taken, and the estimate must be
     /// made without it. Nor when the camera creeps: the latest points drift away
-    /// from every adopted estimate, while the whole run's fit averages the creep.
+    /// from every adopted estimate, while the whole run's fit averages the creep:
+    /// their mean residual, moved to `model`, leaves zero all one way
+    /// ([`super::recent_bias`]).
     pub fn consistent_with(&self, model: &WorkcellModel, pixel_sigma_px: f64) -> bool {
         let seen = f64::from(self.points) + f64::from(self.outliers);
         if self.points == 0 {
@@ -211,7 +220,16 @@ impl FoldedInformation {
             || self.recent_mean_square <= bound;
         mean_square <= bound
             && recent_ok
+            && self.recent_bias.still(&self.offset(model), pixel_sigma_px)
             && f64::from(self.outliers) <= MAX_FOLDED_OUTLIER_FRACTION * seen
+    }
+
+    /// The latest full window of folded points' mean residual vector at
+    /// `model` (px; `None` before a window is full): see [`super::recent_bias`].
+    pub fn recent_mean_px(&self, model: &WorkcellModel) -> Option<[f64; 2]> {
+        self.recent_bias
+            .mean_px(&self.offset(model))
+            .map(|mean| [mean.x, mean.y])
     }
 
     /// Image points folded and kept.

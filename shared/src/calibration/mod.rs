@@ -31,6 +31,7 @@
 //! - [`store`], [`records`]: bounded, thinned storage of observations (f32 pixels).
 //! - [`frame_store`]: the frames' store, packed at the part's feature count.
 //! - [`folded`]: what the stores have no room for, kept as normal equations.
+//! - [`recent_bias`]: the latest folded points' mean residual: a creeping camera.
 //! - [`calibrator`]: [`SelfCalibrator`], the incremental estimator tying it together.
 
 pub mod calibrator;
@@ -46,6 +47,7 @@ pub mod model;
 pub mod normal_blocks;
 pub mod part;
 pub mod pinhole;
+pub mod recent_bias;
 pub mod records;
 pub mod refine;
 pub mod store;
