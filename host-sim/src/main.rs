@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use host_sim::commands::{
     accuracy, calibrate, calibration_demo, faults, free_run, homing, link_check, montecarlo,
-    record, record_images, run, vision_check, vision_log,
+    record, record_images, run, vision_campaign, vision_check, vision_log,
 };
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
@@ -53,6 +53,9 @@ enum Command {
     /// The vision front end: a camera recording in, the observation log out
     /// (detection, identification, undistortion); --score against its truth.
     VisionLog(vision_log::Args),
+    /// The vision front end over many seeded picks rendered in memory, in parallel:
+    /// mislabels, labels against visible marks, calibration against the ideal logs.
+    VisionCampaign(vision_campaign::Args),
 }
 
 fn main() -> ExitCode {
@@ -72,6 +75,7 @@ fn main() -> ExitCode {
         Some(Command::VisionCheck(args)) => vision_check::run(args),
         Some(Command::RecordImages(args)) => record_images::run(args),
         Some(Command::VisionLog(args)) => vision_log::run(args),
+        Some(Command::VisionCampaign(args)) => vision_campaign::run(args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
