@@ -102,7 +102,11 @@ fn header_of(world: &World, renderer: &Renderer) -> RecordingHeader {
         disc_center: bright(settings.centre_mark_radius_m),
         reference: bright(settings.reference_mark_radius_m),
         part_feature: bright(settings.feature_mark_radius_m),
-        effector: vec![bright(settings.effector_mark_radius_m); 2],
+        effector: settings
+            .effector_mark_radii_m
+            .iter()
+            .map(|&r| bright(r))
+            .collect(),
         disc_radius_m: crate::world::dimensions::DISC_RADIUS_M,
     }
 }
@@ -213,8 +217,8 @@ pub fn simulate_pick(
             image: String::new(),
             effector_base_m: effector_base_from_encoders(world),
         };
-        let (header, log_header) = headers
-            .get_or_insert_with(|| (header_of(world, renderer), world.workcell().header()));
+        let (header, log_header) =
+            headers.get_or_insert_with(|| (header_of(world, renderer), world.workcell().header()));
 
         // The truth and the ideal labelled frame.
         let pinhole = &renderer.camera().pinhole;

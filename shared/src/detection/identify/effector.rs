@@ -1,0 +1,415 @@
+//! The gripper's two marks: which blob is which, from what the controller
+//! knows and never from the truth: the marks' sizes (unlike: the light of
+//! mark 0's image is `(d0 / d1)^2` times mark 1's at any height, for the two
+//! lie level when the gripper points down), their base-frame centres latched
+//! with every frame (joint encoders and kinematics), and the camera's
+//! projection of base-frame points once it is fitted ([`super::projection`]).
+//!
+//! Two stages:
+//! 1. **Pairs**, before the projection is known: a frame with exactly two
+//!    candidate blobs (no disc mark's, not ambiguous, apart from every other
+//!    blob) whose light differs by the marks' ratio is a pair: the brighter
+//!    is mark 0. Its *signature* is the angle of the image vector from mark 0
+//!    to mark 1 plus the angle of the base vector between them (constant for
+//!    a camera looking down: the image of the level plane is a mirrored
+//!    rotation of it, up to the camera's tilt) and the separation against
+//!    the square root of the pair's light (constant: both scale alike with
+//!    the marks' distance from the camera). Labels are given only once two
+//!    pairs agree on the signature, and then only to pairs that agree with
+//!    it; each such pair also feeds the projection.
+//! 2. **Projection**, once fitted and trusted: mark `k` is the one blob in
+//!    the gate around its projection, when no other blob is in the gate or
+//!    within [`CLEAR_PX`] of it, its light (against the square of the
+//!    projected separation, which scales like it with distance) is mark
+//!    `k`'s and not the other's, it is no disc mark's, and its track was
+//!    seen in the frame before within the gate of mark `k`'s projection then
+//!    (so a blob that appears where a hidden mark should be is refused).
+//!
+//! Anything else leaves the mark unlabelled: a dropped point costs a frame,
+//! a wrong one would corrupt the base's calibration.
+
+use heapless::Vec;
+
+use super::projection::BaseProjection;
+use super::{LabelledPoint, MarkLabel};
+use crate::detection::MAX_BLOBS;
+use crate::observation::PixelPoint;
+
+/// The gate around a mark's projection, px.
+pub const GATE_PX: f64 = 2.5;
+/// No other blob within this of a labelled mark's blob, px (a mark beside
+/// another is crowded: its blob may be displaced or merged).
+pub const CLEAR_PX: f64 = 5.0;
+/// The projection's largest RMS to be trusted, px.
+const PROJECTION_RMS_PX: f64 = 1.0;
+/// The light ratio of the two marks may be off by this factor (light falls
+/// off across the image, blur spreads the small mark's rim).
+const RATIO_TOLERANCE: f64 = 1.5;
+/// Signatures agree within these: angle, rad; separation against light, share.
+const SIGNATURE_ANGLE_RAD: f64 = 0.15;
+const SIGNATURE_SCALE_SHARE: f64 = 0.2;
+/// Unconfirmed signatures kept.
+const SIGNATURE_CANDIDATES: usize = 4;
+/// A mark's light against the square of the projected separation may be
+/// this factor off its running mean.
+const LIGHT_TOLERANCE: f64 = 1.5;
+/// Weight of a new sighting in the running means.
+const MEAN_WEIGHT: f64 = 0.1;
+/// The base-frame marks must lie this far apart, m (the gripper's drawing).
+const MIN_BASE_SEPARATION_M: f64 = 0.02;
+
+/// Two pairs confirm a signature only when the gripper moved this much
+/// between them, m (a wrong pair seen twice in one place would agree with
+/// itself).
+const CONFIRM_MOVE_M: f64 = 0.05;
+/// Two pairs' midpoints, placed in the camera frame at the depth their
+/// separation gives, must lie as far apart as their base-frame midpoints
+/// (a rigid motion keeps distances) within this plus [`RIGID_SHARE`] of it, m.
+const RIGID_M: f64 = 0.05;
+const RIGID_SHARE: f64 = 0.1;
+/// The projection labels on its own once it holds this many points.
+const MIN_PROJECTION_POINTS: usize = 20;
+
+/// A pair's signature and where it was.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Signature {
+    /// Image angle of mark 0 to mark 1 plus base angle of the same, rad.
+    angle_rad: f64,
+    /// Image separation over the square root of the pair's light.
+    scale: f64,
+    /// The marks' midpoint in the camera frame, at the depth that makes the
+    /// image separation the base-frame one (the marks lie level, about
+    /// square to the camera's axis), m.
+    camera_m: [f64; 3],
+    /// The same midpoint in the base frame, m.
+    base_m: [f64; 3],
+}
+
+impl Signature {
+    /// The same camera and marks: the same angle and scale.
+    fn agrees(&self, other: &Signature) -> bool {
+        let d = libm::remainder(self.angle_rad - other.angle_rad, core::f64::consts::TAU);
+        d.abs() <= SIGNATURE_ANGLE_RAD
+            && (self.scale - other.scale).abs() <= SIGNATURE_SCALE_SHARE * other.scale
+    }
+
+    /// The gripper moved between the two as a rigid body would be seen.
+    fn rigid_with(&self, other: &Signature) -> bool {
+        let moved = distance3(self.base_m, other.base_m);
+        (distance3(self.camera_m, other.camera_m) - moved).abs() <= RIGID_M + RIGID_SHARE * moved
+    }
+}
+
+/// One frame's blob as the effector stage sees it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EffectorCandidate {
+    /// Pinhole pixel.
+    pub pixel: PixelPoint,
+    /// Flux (area times mean contrast).
+    pub flux: f64,
+    /// No disc mark's, not ambiguous: it may be a gripper mark.
+    pub free: bool,
+    /// Its track's position in the frame before, when it was seen then.
+    pub previous_px: Option<PixelPoint>,
+}
+
+/// The effector stage's state over a run.
+#[derive(Debug, Clone)]
+pub struct EffectorMarks {
+    /// `(d0 / d1)^2`: mark 0's light over mark 1's.
+    light_ratio: f64,
+    /// The pinhole camera's principal point and focal length, px.
+    centre: PixelPoint,
+    f_px: f64,
+    projection: BaseProjection,
+    /// The confirmed signature and the last pair that agreed with it.
+    signature: Option<(Signature, Signature)>,
+    unconfirmed: Vec<Signature, SIGNATURE_CANDIDATES>,
+    /// Each mark's light over the square of the marks' image separation (running mean).
+    light: [Option<f64>; 2],
+    /// Each mark's projection in the frame before (the projection's stage).
+    previous_px: [Option<PixelPoint>; 2],
+}
+
+impl EffectorMarks {
+    /// A fresh stage for marks of diameters `diameters_m` under a camera of
+    /// focal length `f_px` and principal point `centre`.
+    pub fn new(diameters_m: [f64; 2], centre: PixelPoint, f_px: f64) -> Self {
+        let [d0, d1] = diameters_m;
+        let light_ratio = if d0 > 0.0 && d1 > 0.0 {
+            (d0 / d1) * (d0 / d1)
+        } else {
+            f64::NAN
+        };
+        Self {
+            light_ratio,
+            centre,
+            f_px,
+            projection: BaseProjection::new(centre, f_px),
+            signature: None,
+            unconfirmed: Vec::new(),
+            light: [None; 2],
+            previous_px: [None; 2],
+        }
+    }
+
+    /// The projection's correspondences and RMS, px (diagnosis).
+    pub fn projection_state(&self) -> (usize, f64) {
+        (self.projection.len(), self.projection.rms_px())
+    }
+
+    /// The two marks are unlike enough to be told apart by their light.
+    fn unlike(&self) -> bool {
+        self.light_ratio.is_finite() && self.light_ratio >= RATIO_TOLERANCE * RATIO_TOLERANCE
+    }
+
+    /// Labels the gripper's marks among `blobs` (index = the frame's blob
+    /// index), whose base-frame centres are `base_m`.
+    /// `disc_known`: the disc's marks are found, so that what turns with the
+    /// disc or rests on it is told from the rest (before, no pair is taken).
+    pub fn identify(
+        &mut self,
+        blobs: &[Option<EffectorCandidate>],
+        base_m: &[[f64; 3]; 2],
+        disc_known: bool,
+    ) -> [Option<LabelledPoint>; 2] {
+        let usable = base_m.iter().flatten().all(|x| x.is_finite())
+            && distance3(base_m[0], base_m[1]) >= MIN_BASE_SEPARATION_M
+            && self.unlike()
+            && disc_known
+            && self.f_px > 0.0;
+        if !usable {
+            self.previous_px = [None; 2];
+            return [None, None];
+        }
+        if self.projection.len() >= MIN_PROJECTION_POINTS
+            && self.projection.trusted(PROJECTION_RMS_PX)
+        {
+            self.by_projection(blobs, base_m)
+        } else {
+            self.previous_px = [None; 2];
+            self.by_pair(blobs, base_m)
+        }
+    }
+
+    /// Stage 1: the frame's one pair of free blobs.
+    fn by_pair(
+        &mut self,
+        blobs: &[Option<EffectorCandidate>],
+        base_m: &[[f64; 3]; 2],
+    ) -> [Option<LabelledPoint>; 2] {
+        let mut free: Vec<usize, MAX_BLOBS> = Vec::new();
+        for (i, b) in blobs.iter().enumerate() {
+            if b.is_some_and(|b| b.free) {
+                let _ = free.push(i);
+            }
+        }
+        let [i, j] = free.as_slice() else {
+            return [None, None];
+        };
+        let (Some(Some(a)), Some(Some(b))) = (blobs.get(*i), blobs.get(*j)) else {
+            return [None, None];
+        };
+        if !clear_of_others(blobs, &[*i, *j], a.pixel)
+            || !clear_of_others(blobs, &[*i, *j], b.pixel)
+        {
+            return [None, None];
+        }
+        // The brighter is mark 0; its light must be the marks' ratio times the other's.
+        let ((i0, m0), (i1, m1)) = if a.flux >= b.flux {
+            ((*i, a), (*j, b))
+        } else {
+            ((*j, b), (*i, a))
+        };
+        if m1.flux <= 0.0 || !within(m0.flux / m1.flux, self.light_ratio, RATIO_TOLERANCE) {
+            return [None, None];
+        }
+        let image = [m1.pixel[0] - m0.pixel[0], m1.pixel[1] - m0.pixel[1]];
+        let separation_px = libm::hypot(image[0], image[1]);
+        let base = [base_m[1][0] - base_m[0][0], base_m[1][1] - base_m[0][1]];
+        if libm::hypot(base[0], base[1]) < MIN_BASE_SEPARATION_M || separation_px < 1.0 {
+            return [None, None];
+        }
+        // The midpoint in the camera frame, at the depth the separation gives.
+        let depth_m = self.f_px * distance3(base_m[0], base_m[1]) / separation_px;
+        let middle = [
+            (m0.pixel[0] + m1.pixel[0]) / 2.0,
+            (m0.pixel[1] + m1.pixel[1]) / 2.0,
+        ];
+        let signature = Signature {
+            angle_rad: libm::atan2(image[1], image[0]) + libm::atan2(base[1], base[0]),
+            scale: separation_px / libm::sqrt(m0.flux + m1.flux),
+            camera_m: [
+                depth_m * (middle[0] - self.centre[0]) / self.f_px,
+                depth_m * (middle[1] - self.centre[1]) / self.f_px,
+                depth_m,
+            ],
+            base_m: [
+                (base_m[0][0] + base_m[1][0]) / 2.0,
+                (base_m[0][1] + base_m[1][1]) / 2.0,
+                (base_m[0][2] + base_m[1][2]) / 2.0,
+            ],
+        };
+        match self.signature {
+            Some((known, last)) => {
+                if !known.agrees(&signature)
+                    || !last.rigid_with(&signature)
+                    || !known.rigid_with(&signature)
+                {
+                    return [None, None];
+                }
+                self.signature = Some((known, signature));
+            }
+            None => {
+                // Confirmed by an earlier pair from elsewhere that agrees.
+                let confirmed = self.unconfirmed.iter().any(|s| {
+                    s.agrees(&signature)
+                        && s.rigid_with(&signature)
+                        && distance3(s.base_m, signature.base_m) >= CONFIRM_MOVE_M
+                });
+                if !confirmed {
+                    if self.unconfirmed.is_full() {
+                        self.unconfirmed.remove(0);
+                    }
+                    let _ = self.unconfirmed.push(signature);
+                    return [None, None];
+                }
+                self.signature = Some((signature, signature));
+                self.unconfirmed.clear();
+            }
+        }
+        let separation_sq = separation_px * separation_px;
+        self.learn_light(0, m0.flux / separation_sq);
+        self.learn_light(1, m1.flux / separation_sq);
+        self.projection.add(base_m[0], m0.pixel);
+        self.projection.add(base_m[1], m1.pixel);
+        self.projection.refit();
+        [
+            Some(labelled(0, m0.pixel, i0)),
+            Some(labelled(1, m1.pixel, i1)),
+        ]
+    }
+
+    fn learn_light(&mut self, k: usize, value: f64) {
+        if let Some(slot) = self.light.get_mut(k) {
+            *slot = Some(match *slot {
+                Some(mean) => mean + MEAN_WEIGHT * (value - mean),
+                None => value,
+            });
+        }
+    }
+
+    /// Stage 2: each mark where the projection puts it.
+    fn by_projection(
+        &mut self,
+        blobs: &[Option<EffectorCandidate>],
+        base_m: &[[f64; 3]; 2],
+    ) -> [Option<LabelledPoint>; 2] {
+        let predicted = [
+            self.projection.project(base_m[0]),
+            self.projection.project(base_m[1]),
+        ];
+        let previous = self.previous_px;
+        self.previous_px = predicted;
+        let [Some(p0), Some(p1)] = predicted else {
+            return [None, None];
+        };
+        let separation_sq = (p1[0] - p0[0]) * (p1[0] - p0[0]) + (p1[1] - p0[1]) * (p1[1] - p0[1]);
+        if separation_sq < 1.0 {
+            return [None, None];
+        }
+        let mut found = [None, None];
+        for (k, slot) in found.iter_mut().enumerate() {
+            let (Some(Some(p)), Some(Some(before))) = (predicted.get(k), previous.get(k)) else {
+                continue;
+            };
+            // Every blob in the gate, free or not: exactly one.
+            let mut in_gate = blobs
+                .iter()
+                .enumerate()
+                .filter_map(|(i, b)| b.map(|b| (i, b)))
+                .filter(|(_, b)| distance(b.pixel, *p) <= GATE_PX);
+            let (Some((i, blob)), None) = (in_gate.next(), in_gate.next()) else {
+                continue;
+            };
+            if !blob.free || !clear_of_others(blobs, &[i], blob.pixel) {
+                continue;
+            }
+            // Seen the frame before where the mark was then.
+            if !blob
+                .previous_px
+                .is_some_and(|q| distance(q, *before) <= GATE_PX)
+            {
+                continue;
+            }
+            // Its light is this mark's, not the other's.
+            let light = blob.flux / separation_sq;
+            let (Some(Some(own)), Some(Some(other))) = (self.light.get(k), self.light.get(1 - k))
+            else {
+                continue;
+            };
+            let own_off = libm::fabs(libm::log(light / own));
+            let other_off = libm::fabs(libm::log(light / other));
+            if !within(light, *own, LIGHT_TOLERANCE) || other_off <= own_off {
+                continue;
+            }
+            *slot = Some(labelled(k, blob.pixel, i));
+        }
+        // Each labelled mark refines the projection and its light, unless it spoils the fit.
+        let before = self.projection.clone();
+        for (k, point) in found.iter().enumerate() {
+            if let (Some(point), Some(base)) = (point, base_m.get(k)) {
+                self.projection.add(*base, point.pixel);
+            }
+        }
+        if found.iter().any(Option::is_some) {
+            self.projection.refit();
+            if !self.projection.trusted(PROJECTION_RMS_PX) {
+                self.projection = before;
+            }
+        }
+        for (k, point) in found.iter().enumerate() {
+            if let Some(point) = point {
+                let flux = blobs
+                    .get(point.blob)
+                    .copied()
+                    .flatten()
+                    .map_or(0.0, |b| b.flux);
+                self.learn_light(k, flux / separation_sq);
+            }
+        }
+        found
+    }
+}
+
+fn labelled(k: usize, pixel: PixelPoint, blob: usize) -> LabelledPoint {
+    LabelledPoint {
+        label: MarkLabel::Effector(k as u8),
+        pixel,
+        blob,
+    }
+}
+
+fn distance(a: PixelPoint, b: PixelPoint) -> f64 {
+    libm::hypot(a[0] - b[0], a[1] - b[1])
+}
+
+fn distance3(a: [f64; 3], b: [f64; 3]) -> f64 {
+    libm::sqrt(
+        (a[0] - b[0]) * (a[0] - b[0])
+            + (a[1] - b[1]) * (a[1] - b[1])
+            + (a[2] - b[2]) * (a[2] - b[2]),
+    )
+}
+
+/// No blob but those of `own` lies within [`CLEAR_PX`] of `p`.
+fn clear_of_others(blobs: &[Option<EffectorCandidate>], own: &[usize], p: PixelPoint) -> bool {
+    !blobs
+        .iter()
+        .enumerate()
+        .any(|(i, b)| !own.contains(&i) && b.is_some_and(|b| distance(b.pixel, p) <= CLEAR_PX))
+}
+
+fn within(measured: f64, expected: f64, tolerance: f64) -> bool {
+    measured >= expected / tolerance && measured <= expected * tolerance
+}
