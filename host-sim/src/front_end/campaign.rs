@@ -82,6 +82,35 @@ pub fn run_pick(
         }
         if let Some(front_end) = front_end.as_mut() {
             front_end.push(&frame.row, frame.pixels)?;
+            if std::env::var_os("EFFECTOR_GAINS").is_some() {
+                if let Some((pixels, gains)) = front_end.effector_pair() {
+                    let name = |p: [f64; 2]| {
+                        frame
+                            .truth
+                            .marks
+                            .iter()
+                            .filter(|m| m.shows)
+                            .map(|m| (m, (m.pinhole_px[0] - p[0]).hypot(m.pinhole_px[1] - p[1])))
+                            .min_by(|a, b| a.1.total_cmp(&b.1))
+                            .map(|(m, d)| {
+                                format!(
+                                    "{}{}{}",
+                                    m.kind,
+                                    m.index,
+                                    if d < 1.5 && m.visible { "" } else { "~" }
+                                )
+                            })
+                            .unwrap_or_default()
+                    };
+                    eprintln!(
+                        "GAIN {} {} {:.2} {:.2}",
+                        name(pixels[0]),
+                        name(pixels[1]),
+                        gains[0],
+                        gains[1]
+                    );
+                }
+            }
         }
         ideal
             .get_or_insert_with(|| ObservationLog {
@@ -97,6 +126,9 @@ pub fn run_pick(
     let (Some(front_end), Some(ideal)) = (front_end, ideal) else {
         anyhow::bail!("the pick of seed {workcell_seed} triggered no frame");
     };
+    if std::env::var_os("EFFECTOR_REFUSALS").is_some() {
+        eprintln!("trial {trial} refusals {:?}", front_end.effector_refusals());
+    }
     let run = front_end.run;
     let tally = score(&run.frames, &truth);
     let from_images = refined(&run.log);

@@ -220,6 +220,16 @@ impl FrontEnd {
         Ok(())
     }
 
+    /// This frame's pair of free blobs and their lights against the yardstick.
+    pub fn effector_pair(&self) -> Option<([[f64; 2]; 2], [f64; 2])> {
+        self.identifier.effector_pair()
+    }
+
+    /// Why the gripper's marks went unlabelled once the projection was known.
+    pub fn effector_refusals(&self) -> [[u32; 6]; 2] {
+        self.identifier.effector_refusals()
+    }
+
     fn print_debug(&self, row: &FrameRow) {
         let identifier = &self.identifier;
         eprintln!(

@@ -55,6 +55,14 @@ const SIGNATURE_CANDIDATES: usize = 4;
 const LIGHT_TOLERANCE: f64 = 1.5;
 /// Weight of a new sighting in the running means.
 const MEAN_WEIGHT: f64 = 0.1;
+/// A gripper mark's light against a disc mark's of its size at its scale
+/// (the gain) must lie in this band. Measured on the rendered picks of
+/// seeds 1 and 2: 0.6 to 1.3 for whole marks (blur takes more of a small
+/// mark's contrast than the dark backing adds); a pair whose mark 0 is half
+/// hidden, which the light ratio would take the other way round, has both
+/// gains below 0.5.
+const GAIN_MIN: f64 = 0.55;
+const GAIN_MAX: f64 = 2.0;
 /// The base-frame marks must lie this far apart, m (the gripper's drawing).
 const MIN_BASE_SEPARATION_M: f64 = 0.02;
 
@@ -67,6 +75,9 @@ const CONFIRM_MOVE_M: f64 = 0.05;
 /// (a rigid motion keeps distances) within this plus [`RIGID_SHARE`] of it, m.
 const RIGID_M: f64 = 0.05;
 const RIGID_SHARE: f64 = 0.1;
+/// A mark's blob must have moved since the frame before as its projection
+/// did, within this, px.
+const MOTION_PX: f64 = 1.5;
 /// The projection labels on its own once it holds this many points.
 const MIN_PROJECTION_POINTS: usize = 20;
 
@@ -118,6 +129,8 @@ pub struct EffectorCandidate {
 pub struct EffectorMarks {
     /// `(d0 / d1)^2`: mark 0's light over mark 1's.
     light_ratio: f64,
+    /// Each mark's diameter over the reference mark's, squared.
+    area_over_reference: [f64; 2],
     /// The pinhole camera's principal point and focal length, px.
     centre: PixelPoint,
     f_px: f64,
@@ -129,13 +142,29 @@ pub struct EffectorMarks {
     light: [Option<f64>; 2],
     /// Each mark's projection in the frame before (the projection's stage).
     previous_px: [Option<PixelPoint>; 2],
+    /// The one blob in each mark's gate in the frame before, if one was.
+    previous_blob_px: [Option<PixelPoint>; 2],
+    /// Why each mark went unlabelled in the projection's stage, by reason
+    /// (diagnosis: none in gate, two in gate, not free, crowded, not seen
+    /// there before, light).
+    pub refusals: [[u32; 6]; 2],
+    /// The last pair's blobs (mark 0's, mark 1's) and their lights against
+    /// the yardstick (diagnosis).
+    pub last_pair: Option<([PixelPoint; 2], [f64; 2])>,
 }
 
 impl EffectorMarks {
     /// A fresh stage for marks of diameters `diameters_m` under a camera of
     /// focal length `f_px` and principal point `centre`.
-    pub fn new(diameters_m: [f64; 2], centre: PixelPoint, f_px: f64) -> Self {
+    pub fn new(diameters_m: [f64; 2], reference_m: f64, centre: PixelPoint, f_px: f64) -> Self {
         let [d0, d1] = diameters_m;
+        let area_over_reference = diameters_m.map(|d| {
+            if reference_m > 0.0 {
+                (d / reference_m) * (d / reference_m)
+            } else {
+                f64::NAN
+            }
+        });
         let light_ratio = if d0 > 0.0 && d1 > 0.0 {
             (d0 / d1) * (d0 / d1)
         } else {
@@ -143,6 +172,7 @@ impl EffectorMarks {
         };
         Self {
             light_ratio,
+            area_over_reference,
             centre,
             f_px,
             projection: BaseProjection::new(centre, f_px),
@@ -150,6 +180,9 @@ impl EffectorMarks {
             unconfirmed: Vec::new(),
             light: [None; 2],
             previous_px: [None; 2],
+            previous_blob_px: [None; 2],
+            refusals: [[0; 6]; 2],
+            last_pair: None,
         }
     }
 
@@ -165,14 +198,18 @@ impl EffectorMarks {
 
     /// Labels the gripper's marks among `blobs` (index = the frame's blob
     /// index), whose base-frame centres are `base_m`.
-    /// `disc_known`: the disc's marks are found, so that what turns with the
-    /// disc or rests on it is told from the rest (before, no pair is taken).
+    /// `yardstick`: the reference mark's light over the square of the
+    /// disc's image scale (px per m), known once the disc is: a mark of the
+    /// reference's size at scale `s` sends about `yardstick * s^2`; before,
+    /// no pair is taken (nor can what turns with the disc be told).
     pub fn identify(
         &mut self,
         blobs: &[Option<EffectorCandidate>],
         base_m: &[[f64; 3]; 2],
-        disc_known: bool,
+        yardstick: Option<f64>,
     ) -> [Option<LabelledPoint>; 2] {
+        self.last_pair = None;
+        let disc_known = yardstick.is_some_and(|y| y.is_finite() && y > 0.0);
         let usable = base_m.iter().flatten().all(|x| x.is_finite())
             && distance3(base_m[0], base_m[1]) >= MIN_BASE_SEPARATION_M
             && self.unlike()
@@ -180,6 +217,7 @@ impl EffectorMarks {
             && self.f_px > 0.0;
         if !usable {
             self.previous_px = [None; 2];
+            self.previous_blob_px = [None; 2];
             return [None, None];
         }
         if self.projection.len() >= MIN_PROJECTION_POINTS
@@ -188,7 +226,8 @@ impl EffectorMarks {
             self.by_projection(blobs, base_m)
         } else {
             self.previous_px = [None; 2];
-            self.by_pair(blobs, base_m)
+            self.previous_blob_px = [None; 2];
+            self.by_pair(blobs, base_m, yardstick.unwrap_or(f64::NAN))
         }
     }
 
@@ -197,6 +236,7 @@ impl EffectorMarks {
         &mut self,
         blobs: &[Option<EffectorCandidate>],
         base_m: &[[f64; 3]; 2],
+        yardstick: f64,
     ) -> [Option<LabelledPoint>; 2] {
         let mut free: Vec<usize, MAX_BLOBS> = Vec::new();
         for (i, b) in blobs.iter().enumerate() {
@@ -228,6 +268,18 @@ impl EffectorMarks {
         let separation_px = libm::hypot(image[0], image[1]);
         let base = [base_m[1][0] - base_m[0][0], base_m[1][1] - base_m[0][1]];
         if libm::hypot(base[0], base[1]) < MIN_BASE_SEPARATION_M || separation_px < 1.0 {
+            return [None, None];
+        }
+        // Each mark's light against a disc mark of its size at the pair's scale.
+        let scale = separation_px / distance3(base_m[0], base_m[1]);
+        let gains = [(0, m0.flux), (1, m1.flux)].map(|(k, flux)| {
+            flux / (yardstick
+                * scale
+                * scale
+                * self.area_over_reference.get(k).copied().unwrap_or(f64::NAN))
+        });
+        self.last_pair = Some(([m0.pixel, m1.pixel], gains));
+        if !gains.iter().all(|g| (GAIN_MIN..=GAIN_MAX).contains(g)) {
             return [None, None];
         }
         // The midpoint in the camera frame, at the depth the separation gives.
@@ -310,7 +362,9 @@ impl EffectorMarks {
             self.projection.project(base_m[1]),
         ];
         let previous = self.previous_px;
+        let previous_blob = self.previous_blob_px;
         self.previous_px = predicted;
+        self.previous_blob_px = [None; 2];
         let [Some(p0), Some(p1)] = predicted else {
             return [None, None];
         };
@@ -320,7 +374,7 @@ impl EffectorMarks {
         }
         let mut found = [None, None];
         for (k, slot) in found.iter_mut().enumerate() {
-            let (Some(Some(p)), Some(Some(before))) = (predicted.get(k), previous.get(k)) else {
+            let Some(Some(p)) = predicted.get(k) else {
                 continue;
             };
             // Every blob in the gate, free or not: exactly one.
@@ -329,17 +383,43 @@ impl EffectorMarks {
                 .enumerate()
                 .filter_map(|(i, b)| b.map(|b| (i, b)))
                 .filter(|(_, b)| distance(b.pixel, *p) <= GATE_PX);
-            let (Some((i, blob)), None) = (in_gate.next(), in_gate.next()) else {
+            let refuse = |r: &mut [[u32; 6]; 2], reason: usize| {
+                if let Some(c) = r.get_mut(k).and_then(|r| r.get_mut(reason)) {
+                    *c += 1;
+                }
+            };
+            let (first, second) = (in_gate.next(), in_gate.next());
+            let Some((i, blob)) = first else {
+                refuse(&mut self.refusals, 0);
                 continue;
             };
-            if !blob.free || !clear_of_others(blobs, &[i], blob.pixel) {
+            if second.is_some() {
+                refuse(&mut self.refusals, 1);
                 continue;
             }
-            // Seen the frame before where the mark was then.
-            if !blob
-                .previous_px
-                .is_some_and(|q| distance(q, *before) <= GATE_PX)
-            {
+            if let Some(slot) = self.previous_blob_px.get_mut(k) {
+                *slot = Some(blob.pixel);
+            }
+            if !blob.free {
+                refuse(&mut self.refusals, 2);
+                continue;
+            }
+            if !clear_of_others(blobs, &[i], blob.pixel) {
+                refuse(&mut self.refusals, 3);
+                continue;
+            }
+            // The one blob in its gate the frame before too, and moved
+            // since as the mark's projection did.
+            let moved_alike = match (previous.get(k), previous_blob.get(k)) {
+                (Some(Some(before)), Some(Some(then))) => {
+                    let image = [blob.pixel[0] - then[0], blob.pixel[1] - then[1]];
+                    let mark = [p[0] - before[0], p[1] - before[1]];
+                    libm::hypot(image[0] - mark[0], image[1] - mark[1]) <= MOTION_PX
+                }
+                _ => false,
+            };
+            if !moved_alike {
+                refuse(&mut self.refusals, 4);
                 continue;
             }
             // Its light is this mark's, not the other's.
@@ -351,6 +431,7 @@ impl EffectorMarks {
             let own_off = libm::fabs(libm::log(light / own));
             let other_off = libm::fabs(libm::log(light / other));
             if !within(light, *own, LIGHT_TOLERANCE) || other_off <= own_off {
+                refuse(&mut self.refusals, 5);
                 continue;
             }
             *slot = Some(labelled(k, blob.pixel, i));

@@ -262,6 +262,8 @@ pub struct Identifier {
     tracks: Vec<Followed, MAX_TRACKS>,
     disc: Option<DiscImage>,
     features_rotating: Vec<[f64; 2], MAX_PART_FEATURES>,
+    /// The disc centre's image once found (it does not move).
+    centre_px: Option<PixelPoint>,
     effector: EffectorMarks,
     /// The reference mark's mean flux, the yardstick of the other marks' sizes.
     reference_flux: Option<f64>,
@@ -279,8 +281,10 @@ impl Identifier {
             tracks: Vec::new(),
             disc: None,
             features_rotating: Vec::new(),
+            centre_px: None,
             effector: EffectorMarks::new(
                 settings.diameters.effector_m,
+                settings.diameters.reference_m,
                 [lens.cx, lens.cy],
                 lens.f_px,
             ),
@@ -302,6 +306,18 @@ impl Identifier {
     /// The base-frame projection's correspondences and RMS, px (diagnosis).
     pub fn projection_state(&self) -> (usize, f64) {
         self.effector.projection_state()
+    }
+
+    /// Why the gripper's marks went unlabelled once the projection was
+    /// known, per mark (see [`EffectorMarks::refusals`]).
+    pub fn effector_refusals(&self) -> [[u32; 6]; 2] {
+        self.effector.refusals
+    }
+
+    /// This frame's pair of free blobs, if the pair stage saw one, with
+    /// their lights against the yardstick (diagnosis).
+    pub fn effector_pair(&self) -> Option<([PixelPoint; 2], [f64; 2])> {
+        self.effector.last_pair
     }
 
     /// Labels the `blobs` of the frame at `theta` (the encoder angle latched
@@ -340,7 +356,8 @@ impl Identifier {
         self.find_centre();
         self.find_features(theta);
         // 6. Effector marks.
-        let effector = self.find_effector(&points, &ambiguous, &near_disc_mark, effector_base_m);
+        let effector =
+            self.find_effector(theta, &points, &ambiguous, &near_disc_mark, effector_base_m);
 
         for followed in self.tracks.iter() {
             if let (Some(label), Some(blob), true) = (followed.label, followed.blob, followed.sure)
@@ -836,11 +853,35 @@ impl Identifier {
     /// mark before) and where its track was the frame before.
     fn find_effector(
         &mut self,
+        theta: f64,
         points: &[Option<(PixelPoint, f64, f64)>],
         ambiguous: &[bool],
         near_disc_mark: &[bool],
         effector_base_m: &[[f64; 3]; 2],
     ) -> [Option<LabelledPoint>; 2] {
+        // Where the disc's marks are known to be, seen or not: the centre's
+        // image, and the reference and the part's features as the disc
+        // model turns them (a disc mark that reappears from under the arm
+        // starts a new track, which says nothing yet).
+        if let Some(centre) = self
+            .tracks
+            .iter()
+            .find(|f| f.label == Some(MarkLabel::DiscCentre))
+        {
+            self.centre_px = Some(centre.track.latest.1);
+        }
+        let mut disc_marks: Vec<PixelPoint, MAX_LABELS> = Vec::new();
+        if let Some(centre) = self.centre_px {
+            let _ = disc_marks.push(centre);
+        }
+        if let Some(disc) = self.disc {
+            let l = self.settings.reference_radius_m;
+            let _ = disc_marks.push(disc.pixel([l, 0.0], theta, l));
+            for p in self.features_rotating.iter() {
+                let _ = disc_marks.push(disc.pixel(*p, theta, l));
+            }
+        }
+        let keep_off = self.settings.gate_px + effector::CLEAR_PX;
         let mut candidates: Vec<Option<EffectorCandidate>, MAX_BLOBS> = Vec::new();
         for (i, point) in points.iter().enumerate() {
             let candidate = point.map(|(pixel, _, flux)| {
@@ -852,6 +893,9 @@ impl Identifier {
                     pixel,
                     flux,
                     free: !on_disc
+                        && !disc_marks
+                            .iter()
+                            .any(|q| libm::hypot(q[0] - pixel[0], q[1] - pixel[1]) <= keep_off)
                         && !ambiguous.get(i).copied().unwrap_or(true)
                         && !near_disc_mark.get(i).copied().unwrap_or(true),
                     previous_px: holder
@@ -861,9 +905,13 @@ impl Identifier {
             });
             let _ = candidates.push(candidate);
         }
+        let yardstick = self
+            .disc
+            .zip(self.reference_flux)
+            .map(|(disc, flux)| flux / (disc.scale_px_per_m * disc.scale_px_per_m));
         let found = self
             .effector
-            .identify(&candidates, effector_base_m, self.disc.is_some());
+            .identify(&candidates, effector_base_m, yardstick);
         for f in self.tracks.iter_mut() {
             if found.iter().flatten().any(|p| f.blob == Some(p.blob)) {
                 f.on_arm = true;
