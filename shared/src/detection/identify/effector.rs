@@ -52,7 +52,7 @@ const SIGNATURE_SCALE_SHARE: f64 = 0.2;
 const SIGNATURE_CANDIDATES: usize = 4;
 /// A mark's light against the square of the projected separation may be
 /// this factor off its running mean.
-const LIGHT_TOLERANCE: f64 = 1.5;
+const LIGHT_TOLERANCE: f64 = 1.3;
 /// Weight of a new sighting in the running means.
 const MEAN_WEIGHT: f64 = 0.1;
 /// A gripper mark's light against a disc mark's of its size at its scale
@@ -120,8 +120,6 @@ pub struct EffectorCandidate {
     pub flux: f64,
     /// No disc mark's, not ambiguous: it may be a gripper mark.
     pub free: bool,
-    /// Its track's position in the frame before, when it was seen then.
-    pub previous_px: Option<PixelPoint>,
 }
 
 /// The effector stage's state over a run.
@@ -184,6 +182,12 @@ impl EffectorMarks {
             refusals: [[0; 6]; 2],
             last_pair: None,
         }
+    }
+
+    /// Where the projection put the marks in the frame just identified,
+    /// once it is trusted (`None` before, or when a mark projects nowhere).
+    pub fn projected_px(&self) -> [Option<PixelPoint>; 2] {
+        self.previous_px
     }
 
     /// The projection's correspondences and RMS, px (diagnosis).

@@ -251,8 +251,6 @@ struct Followed {
     /// This frame's blob lay within [`OUTPUT_GATE_PX`] of the prediction
     /// and the track was seen in the frame before: its label may be given.
     sure: bool,
-    /// The track was seen in the frame before and again in this one.
-    continued: bool,
 }
 
 /// Identification's state over a run.
@@ -359,10 +357,19 @@ impl Identifier {
         let effector =
             self.find_effector(theta, &points, &ambiguous, &near_disc_mark, effector_base_m);
 
+        // Where the gripper's marks project now: a disc label there may be a
+        // gripper mark standing in a disc mark's place, and is not given.
+        let gripper_px = self.effector.projected_px();
         for followed in self.tracks.iter() {
             if let (Some(label), Some(blob), true) = (followed.label, followed.blob, followed.sure)
             {
                 if matches!(label, MarkLabel::Effector(_)) {
+                    continue;
+                }
+                let p = followed.track.latest.1;
+                if gripper_px.iter().flatten().any(|q| {
+                    libm::hypot(p[0] - q[0], p[1] - q[1]) <= effector::GATE_PX + OUTPUT_GATE_PX
+                }) {
                     continue;
                 }
                 if let Some(Some((pixel, _, _))) = points.get(blob) {
@@ -433,7 +440,6 @@ impl Identifier {
         for (t, followed) in self.tracks.iter_mut().enumerate() {
             followed.blob = None;
             followed.sure = false;
-            followed.continued = false;
             let track = &followed.track;
             let (theta1, p1) = track.latest;
             let first_seen = track.previous.is_none();
@@ -508,7 +514,6 @@ impl Identifier {
             });
             match taken.and_then(|i| points.get(i).copied().flatten().map(|p| (i, p))) {
                 Some((i, (p, area, flux))) => {
-                    followed.continued = followed.track.misses == 0;
                     followed.track.update(theta, p, area, flux);
                     followed.blob = Some(i);
                     followed.sure = *innovation <= OUTPUT_GATE_PX;
@@ -539,7 +544,6 @@ impl Identifier {
                     on_arm: false,
                     blob: Some(i),
                     sure: false,
-                    continued: false,
                 };
                 if self.tracks.push(new).is_err() {
                     report.tracks_full += 1;
@@ -850,7 +854,7 @@ impl Identifier {
     /// The gripper's marks ([`effector`]): each blob with whether it may be
     /// one (not ambiguous, no disc mark's: neither labelled as one nor
     /// turning with the disc or still on it, unless taken for a gripper
-    /// mark before) and where its track was the frame before.
+    /// mark before, nor near where a disc mark is known to be).
     fn find_effector(
         &mut self,
         theta: f64,
@@ -898,9 +902,6 @@ impl Identifier {
                             .any(|q| libm::hypot(q[0] - pixel[0], q[1] - pixel[1]) <= keep_off)
                         && !ambiguous.get(i).copied().unwrap_or(true)
                         && !near_disc_mark.get(i).copied().unwrap_or(true),
-                    previous_px: holder
-                        .filter(|f| f.continued)
-                        .and_then(|f| f.track.previous.map(|(_, p)| p)),
                 }
             });
             let _ = candidates.push(candidate);
