@@ -2,7 +2,11 @@
 //! each pick is rendered ([`simulate_pick`]), its frames fed straight to the
 //! front end ([`FrontEnd`]), its labels scored against the truth and both
 //! its logs (the front end's and the ideal one of the same frames)
-//! calibrated. What `host-sim vision-campaign` prints.
+//! calibrated. What `host-sim vision-campaign` prints. For diagnosis,
+//! `EFFECTOR_REFUSALS` in the environment prints why each pick's gripper
+//! marks went unlabelled in the projection's stage, `EFFECTOR_GAINS` each
+//! pair's blobs (named from the truth) and their lights against the disc's
+//! yardstick.
 
 use std::collections::BTreeMap;
 
