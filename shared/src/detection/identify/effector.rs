@@ -6,24 +6,31 @@
 //! projection of base-frame points once it is fitted ([`super::projection`]).
 //!
 //! Two stages:
-//! 1. **Pairs**, before the projection is known: a frame with exactly two
-//!    candidate blobs (no disc mark's, not ambiguous, apart from every other
-//!    blob) whose light differs by the marks' ratio is a pair: the brighter
-//!    is mark 0. Its *signature* is the angle of the image vector from mark 0
-//!    to mark 1 plus the angle of the base vector between them (constant for
-//!    a camera looking down: the image of the level plane is a mirrored
-//!    rotation of it, up to the camera's tilt) and the separation against
-//!    the square root of the pair's light (constant: both scale alike with
-//!    the marks' distance from the camera). Labels are given only once two
-//!    pairs agree on the signature, and then only to pairs that agree with
-//!    it; each such pair also feeds the projection.
-//! 2. **Projection**, once fitted and trusted: mark `k` is the one blob in
-//!    the gate around its projection, when no other blob is in the gate or
-//!    within [`CLEAR_PX`] of it, its light (against the square of the
-//!    projected separation, which scales like it with distance) is mark
-//!    `k`'s and not the other's, it is no disc mark's, and its track was
-//!    seen in the frame before within the gate of mark `k`'s projection then
-//!    (so a blob that appears where a hidden mark should be is refused).
+//! 1. **Pairs**, before the projection is known (and only once the disc is,
+//!    so that disc marks are told from the rest): a frame with exactly two
+//!    free blobs (no disc mark's, not ambiguous, [`CLEAR_PX`] from every
+//!    other blob) whose light differs by the marks' ratio is a pair: the
+//!    brighter is mark 0. Each blob's light against a disc mark of its size
+//!    at the pair's scale (the yardstick) must be a whole mark's (a half
+//!    hidden mark 0 would pass the ratio the other way round). Its
+//!    *signature* is the angle of the image vector from mark 0 to mark 1
+//!    plus the angle of the base vector between them (constant for a camera
+//!    looking down: the image of the level plane is a mirrored rotation of
+//!    it, up to the camera's tilt) and the separation against the square
+//!    root of the pair's light (constant: both scale alike with the marks'
+//!    distance from the camera). Labels are given only once a pair agrees
+//!    with an earlier one from `CONFIRM_MOVE_M` away that moved rigidly
+//!    (its midpoint, placed in the camera frame at the depth the separation
+//!    gives, moved as far as the base-frame one), then only to pairs that
+//!    agree with that signature and moved rigidly; each feeds the projection.
+//! 2. **Projection**, once it holds `MIN_PROJECTION_POINTS` and explains
+//!    them: mark `k` is the one blob (of all) in the gate around its
+//!    projection, free, [`CLEAR_PX`] from every other blob, of mark `k`'s
+//!    light and not the other's (against the square of the projected
+//!    separation, which scales like it with distance), and it moved since
+//!    the frame before, from the one blob in the gate then, as the
+//!    projection did (a blob that appears where a hidden mark should be is
+//!    refused).
 //!
 //! Anything else leaves the mark unlabelled: a dropped point costs a frame,
 //! a wrong one would corrupt the base's calibration.
