@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use host_sim::commands::{
     accuracy, calibrate, calibration_demo, faults, free_run, homing, link_check, montecarlo,
-    record, record_images, run, vision_check, vision_live, vision_log,
+    record, record_images, run, vision_campaign, vision_check, vision_live, vision_log,
 };
 
 /// Simulated self-calibrating workcell (PUMA 560, disc conveyor, one camera).
@@ -56,6 +56,9 @@ enum Command {
     /// Grab frames from a V4L2 camera into a recording folder (built with the
     /// `v4l2` feature); with --latches (the encoder values) a complete recording.
     VisionLive(vision_live::Args),
+    /// The vision front end over many seeded picks rendered in memory, in parallel:
+    /// mislabels, labels against visible marks, calibration against the ideal logs.
+    VisionCampaign(vision_campaign::Args),
 }
 
 fn main() -> ExitCode {
@@ -76,6 +79,7 @@ fn main() -> ExitCode {
         Some(Command::RecordImages(args)) => record_images::run(args),
         Some(Command::VisionLog(args)) => vision_log::run(args),
         Some(Command::VisionLive(args)) => vision_live::run(args),
+        Some(Command::VisionCampaign(args)) => vision_campaign::run(args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

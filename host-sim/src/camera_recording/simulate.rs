@@ -102,7 +102,11 @@ fn header_of(world: &World, renderer: &Renderer) -> RecordingHeader {
         disc_center: bright(settings.centre_mark_radius_m),
         reference: bright(settings.reference_mark_radius_m),
         part_feature: bright(settings.feature_mark_radius_m),
-        effector: vec![bright(settings.effector_mark_radius_m); 2],
+        effector: settings
+            .effector_mark_radii_m
+            .iter()
+            .map(|&r| bright(r))
+            .collect(),
         disc_radius_m: crate::world::dimensions::DISC_RADIUS_M,
     }
 }
@@ -134,24 +138,38 @@ impl std::fmt::Display for EnoughFrames {
 
 impl std::error::Error for EnoughFrames {}
 
-/// Records the pick of `experiment` on the workcell of `seed` into `folder`:
-/// at most `max_frames` frames (every `stride`-th trigger), with the truth
-/// file and the ideal log beside them.
-pub fn record_pick(
+/// One simulated frame as a recording has it, with its truth and its ideal
+/// labelled frame beside it.
+pub struct SimulatedFrame<'a> {
+    /// The recording's header (the same every frame).
+    pub header: &'a RecordingHeader,
+    /// The observation log's header of the workcell (for the ideal log).
+    pub log_header: &'a shared::observation::LogHeader,
+    /// What the cell latched at the trigger (`image` left empty).
+    pub row: FrameRow,
+    /// The 8-bit grey image, rows top to bottom.
+    pub pixels: &'a [u8],
+    /// Every mark where it truly is (scoring only).
+    pub truth: TrueFrame,
+    /// The observation log's frame from the true projections of the marks in view.
+    pub ideal: ObservationFrame,
+}
+
+/// Runs the pick of `experiment` on the workcell of `seed` and hands each
+/// rendered frame (at most `max_frames`, every `stride`-th trigger) to
+/// `sink`, in order: what [`record_pick`] writes and what
+/// `host-sim vision-campaign` feeds to the front end without a disk.
+pub fn simulate_pick(
     experiment: &PickExperiment,
     seed: u64,
-    folder: &Path,
     max_frames: usize,
     stride: usize,
+    sink: &mut dyn FnMut(SimulatedFrame<'_>) -> Result<()>,
 ) -> Result<RecordedRun> {
     let settings = experiment.image;
     let exposure_s = settings.exposure_ms / 1000.0;
     let mut renderer: Option<Renderer> = None;
-    let mut writer: Option<(RecordingWriter, LogWriter<BufWriter<File>>)> = None;
-    let mut truth = BufWriter::new(File::create(folder.join(TRUTH_FILE)).or_else(|_| {
-        std::fs::create_dir_all(folder)?;
-        File::create(folder.join(TRUTH_FILE))
-    })?);
+    let mut headers: Option<(RecordingHeader, shared::observation::LogHeader)> = None;
     let mut noise_rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7ec0_4d1e);
     let mut frame = GrayFrame {
         width: 0,
@@ -199,20 +217,8 @@ pub fn record_pick(
             image: String::new(),
             effector_base_m: effector_base_from_encoders(world),
         };
-        if writer.is_none() {
-            let recording = RecordingWriter::create(folder, &header_of(world, renderer))?;
-            let log_path = folder.join(IDEAL_LOG_FILE);
-            let log = LogWriter::new(
-                BufWriter::new(
-                    File::create(&log_path).with_context(|| log_path.display().to_string())?,
-                ),
-                &world.workcell().header(),
-            )?;
-            writer = Some((recording, log));
-        }
-        let Some((recording, log)) = writer.as_mut() else {
-            return Ok(());
-        };
+        let (header, log_header) =
+            headers.get_or_insert_with(|| (header_of(world, renderer), world.workcell().header()));
 
         // The truth and the ideal labelled frame.
         let pinhole = &renderer.camera().pinhole;
@@ -271,16 +277,17 @@ pub fn record_pick(
                 base_m: [*pa, *pb],
             });
         }
-        log.write_frame(&ideal)?;
-        serde_json::to_writer(
-            &mut truth,
-            &TrueFrame {
+        sink(SimulatedFrame {
+            header,
+            log_header,
+            row,
+            pixels: &frame.pixels,
+            truth: TrueFrame {
                 trigger_id,
                 marks: true_marks,
             },
-        )?;
-        truth.write_all(b"\n")?;
-        recording.push(row, &frame.pixels)?;
+            ideal,
+        })?;
         frames += 1;
         Ok(())
     };
@@ -289,12 +296,52 @@ pub fn record_pick(
         Err(e) if e.downcast_ref::<EnoughFrames>().is_some() => {}
         Err(e) => return Err(e.context(format!("the pick of seed {seed}"))),
     }
+    Ok(RecordedRun { frames })
+}
+
+/// Records the pick of `experiment` on the workcell of `seed` into `folder`:
+/// at most `max_frames` frames (every `stride`-th trigger), with the truth
+/// file and the ideal log beside them.
+pub fn record_pick(
+    experiment: &PickExperiment,
+    seed: u64,
+    folder: &Path,
+    max_frames: usize,
+    stride: usize,
+) -> Result<RecordedRun> {
+    let mut writer: Option<(RecordingWriter, LogWriter<BufWriter<File>>)> = None;
+    let mut truth = BufWriter::new(File::create(folder.join(TRUTH_FILE)).or_else(|_| {
+        std::fs::create_dir_all(folder)?;
+        File::create(folder.join(TRUTH_FILE))
+    })?);
+    let mut sink = |frame: SimulatedFrame<'_>| -> Result<()> {
+        if writer.is_none() {
+            let recording = RecordingWriter::create(folder, frame.header)?;
+            let log_path = folder.join(IDEAL_LOG_FILE);
+            let log = LogWriter::new(
+                BufWriter::new(
+                    File::create(&log_path).with_context(|| log_path.display().to_string())?,
+                ),
+                frame.log_header,
+            )?;
+            writer = Some((recording, log));
+        }
+        let Some((recording, log)) = writer.as_mut() else {
+            return Ok(());
+        };
+        log.write_frame(&frame.ideal)?;
+        serde_json::to_writer(&mut truth, &frame.truth)?;
+        truth.write_all(b"\n")?;
+        recording.push(frame.row, frame.pixels)?;
+        Ok(())
+    };
+    let recorded = simulate_pick(experiment, seed, max_frames, stride, &mut sink)?;
     if let Some((recording, log)) = writer {
         recording.finish()?;
         log.finish()?;
     }
     truth.flush()?;
-    Ok(RecordedRun { frames })
+    Ok(recorded)
 }
 
 /// Reads `truth.jsonl`.

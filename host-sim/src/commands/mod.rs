@@ -13,6 +13,7 @@
 //! - [`link_check`]: `host-sim link-check`: handshake and checked exchange with the controller.
 //! - [`homing`]: `host-sim homing`: seeded power-ons homed and scored against the drawn offsets.
 //! - [`free_run`]: `host-sim free-run`: one pick with the plant running free against the emulated board.
+//! - [`vision_campaign`]: `host-sim vision-campaign`: the vision front end over many rendered picks, scored.
 //! - [`vision_check`]: `host-sim vision-check`: the mark detector on rendered frames against the truth.
 
 pub mod accuracy;
@@ -26,6 +27,7 @@ pub mod montecarlo;
 pub mod record;
 pub mod record_images;
 pub mod run;
+pub mod vision_campaign;
 pub mod vision_check;
 pub mod vision_live;
 pub mod vision_log;

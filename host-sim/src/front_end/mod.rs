@@ -9,6 +9,7 @@
 //! the front end itself never reads it. With `FRONT_END_DEBUG` set in the
 //! environment, each frame's tracks and labels are printed to stderr.
 
+pub mod campaign;
 pub mod pictures;
 pub mod score;
 
@@ -21,7 +22,7 @@ use shared::detection::identify::{
 use shared::detection::{Blob, Detector, DetectorSettings, GrayImage, MAX_BLOBS};
 use shared::observation::{EffectorSighting, LogHeader, ObservationFrame, LOG_VERSION};
 
-use crate::camera_recording::{Polarity, Recording, RecordingHeader};
+use crate::camera_recording::{FrameRow, Polarity, Recording, RecordingHeader};
 use crate::log::ObservationLog;
 
 /// Gate around a track's predicted position, px.
@@ -138,102 +139,160 @@ fn log_frame(
     }
 }
 
+/// The front end's state over one run, fed frame by frame (a recording's,
+/// or a simulated pick's straight from the renderer).
+pub struct FrontEnd {
+    detector: Box<Detector>,
+    identifier: Box<Identifier>,
+    blobs: HVec<Blob, MAX_BLOBS>,
+    points: HVec<LabelledPoint, MAX_LABELS>,
+    width: usize,
+    height: usize,
+    /// What it gave so far.
+    pub run: FrontEndRun,
+}
+
+impl FrontEnd {
+    /// A front end for the recording of `header`.
+    pub fn new(header: &RecordingHeader) -> Result<Self> {
+        let settings = identify_settings(header)?;
+        let log_header = LogHeader {
+            version: LOG_VERSION,
+            camera: header.camera,
+            reference_radius_m: header.reference_radius_m,
+            part_feature_count: header.part_feature_count,
+        };
+        Ok(Self {
+            detector: Box::new(Detector::new(DetectorSettings::default())),
+            identifier: Box::new(Identifier::new(settings)),
+            blobs: HVec::new(),
+            points: HVec::new(),
+            width: header.camera.width as usize,
+            height: header.camera.height as usize,
+            run: FrontEndRun {
+                log: ObservationLog {
+                    header: log_header,
+                    frames: Vec::new(),
+                },
+                frames: Vec::new(),
+                skipped_images: 0,
+                refused_frames: 0,
+                ambiguous: 0,
+            },
+        })
+    }
+
+    /// Detects and labels one frame (`pixels` rows top to bottom) and adds
+    /// it to the log.
+    pub fn push(&mut self, row: &FrameRow, pixels: &[u8]) -> Result<()> {
+        let image = GrayImage::new(self.width, self.height, self.width, pixels)
+            .map_err(|e| anyhow::anyhow!("image {}: {e}", row.image))?;
+        if self.detector.detect(&image, &mut self.blobs).is_err() {
+            self.run.refused_frames += 1;
+            self.blobs.clear();
+        }
+        let effector_base_m = match row.effector_base_m.as_slice() {
+            [a, b, ..] => [*a, *b],
+            _ => anyhow::bail!("frames.csv line {}: two effector marks expected", row.line),
+        };
+        let report = self.identifier.identify(
+            row.conveyor_angle_rad,
+            &self.blobs,
+            &effector_base_m,
+            &mut self.points,
+        );
+        self.run.ambiguous += u64::from(report.ambiguous);
+        if std::env::var_os("FRONT_END_DEBUG").is_some() {
+            self.print_debug(row);
+        }
+        let t_s = row.capture_time_us as f64 * 1e-6;
+        let frame = log_frame(
+            &self.run.log.header,
+            t_s,
+            row.conveyor_angle_rad,
+            &self.points,
+            &effector_base_m,
+        );
+        self.run.log.frames.push(frame);
+        self.run.frames.push(FrameLabels {
+            trigger_id: row.trigger_id,
+            blobs: self.blobs.to_vec(),
+            points: self.points.to_vec(),
+        });
+        Ok(())
+    }
+
+    /// This frame's pair of free blobs and their lights against the yardstick.
+    pub fn effector_pair(&self) -> Option<([[f64; 2]; 2], [f64; 2])> {
+        self.identifier.effector_pair()
+    }
+
+    /// Why the gripper's marks went unlabelled once the projection was known.
+    pub fn effector_refusals(&self) -> [[u32; 6]; 2] {
+        self.identifier.effector_refusals()
+    }
+
+    fn print_debug(&self, row: &FrameRow) {
+        let identifier = &self.identifier;
+        eprintln!(
+            "frame {} theta {:.3} blobs {} labelled {} disc {:?} projection {:?}",
+            row.trigger_id,
+            row.conveyor_angle_rad,
+            self.blobs.len(),
+            self.points.len(),
+            identifier.disc_image(),
+            identifier.projection_state()
+        );
+        for b in &self.blobs {
+            eprintln!(
+                "  blob ({:.1},{:.1}) area {} contrast {:.1}",
+                b.x_px, b.y_px, b.area_px, b.mean_contrast
+            );
+        }
+        for p in &self.points {
+            eprintln!(
+                "  label {:?} at ({:.1},{:.1})",
+                p.label, p.pixel[0], p.pixel[1]
+            );
+        }
+        for (t, label) in identifier.tracks() {
+            let m = t.fit.model(0.25);
+            let w = t.whole.model(0.8);
+            eprintln!(
+                "  {:?} hits {} miss {} at ({:.1},{:.1}) area {:.1} flux {:.0} recent {:?} whole {:?}",
+                label,
+                t.hits,
+                t.misses,
+                t.latest.1[0],
+                t.latest.1[1],
+                t.mean_area_px(),
+                t.mean_flux(),
+                m.map(|m| (m.rms_px, m.radius_px())),
+                w.map(|m| (m.rms_px, m.radius_px(), m.centre_px))
+            );
+        }
+    }
+}
+
 /// Runs the front end over `recording`: with `skip_bad_images`, frames whose
 /// image is bad are skipped and counted, else they are an error.
 pub fn run(recording: &Recording, skip_bad_images: bool) -> Result<FrontEndRun> {
-    let header = &recording.header;
-    let settings = identify_settings(header)?;
-    let log_header = LogHeader {
-        version: LOG_VERSION,
-        camera: header.camera,
-        reference_radius_m: header.reference_radius_m,
-        part_feature_count: header.part_feature_count,
-    };
-    let mut detector = Box::new(Detector::new(DetectorSettings::default()));
-    let mut identifier = Box::new(Identifier::new(settings));
-    let mut blobs: HVec<Blob, MAX_BLOBS> = HVec::new();
-    let mut points: HVec<LabelledPoint, MAX_LABELS> = HVec::new();
-    let mut run = FrontEndRun {
-        log: ObservationLog {
-            header: log_header,
-            frames: Vec::new(),
-        },
-        frames: Vec::new(),
-        skipped_images: 0,
-        refused_frames: 0,
-        ambiguous: 0,
-    };
-    let (width, height) = (header.camera.width as usize, header.camera.height as usize);
+    let mut front_end = FrontEnd::new(&recording.header)?;
     for row in &recording.rows {
         let pixels = match recording.image(row) {
             Ok(pixels) => pixels,
             Err(e @ crate::camera_recording::RecordingError::Image { .. }) => {
                 if skip_bad_images {
-                    run.skipped_images += 1;
+                    front_end.run.skipped_images += 1;
                     continue;
                 }
                 return Err(e).context(format!("frames.csv line {}", row.line));
             }
             Err(e) => return Err(e.into()),
         };
-        let image = GrayImage::new(width, height, width, &pixels)
-            .map_err(|e| anyhow::anyhow!("image {}: {e}", row.image))?;
-        if detector.detect(&image, &mut blobs).is_err() {
-            run.refused_frames += 1;
-            blobs.clear();
-        }
-        let effector_base_m = match row.effector_base_m.as_slice() {
-            [a, b, ..] => [*a, *b],
-            _ => anyhow::bail!("frames.csv line {}: two effector marks expected", row.line),
-        };
-        let report = identifier.identify(
-            row.conveyor_angle_rad,
-            &blobs,
-            &effector_base_m,
-            &mut points,
-        );
-        run.ambiguous += u64::from(report.ambiguous);
-        if std::env::var_os("FRONT_END_DEBUG").is_some() {
-            eprintln!(
-                "frame {} theta {:.3} blobs {} labelled {} disc {:?} projection {:?}",
-                row.trigger_id,
-                row.conveyor_angle_rad,
-                blobs.len(),
-                points.len(),
-                identifier.disc_image(),
-                identifier.projection_state()
-            );
-            for (t, label) in identifier.tracks() {
-                let m = t.fit.model(0.25);
-                let w = t.whole.model(0.8);
-                eprintln!(
-                    "  {:?} hits {} miss {} at ({:.1},{:.1}) area {:.1} recent {:?} whole {:?}",
-                    label,
-                    t.hits,
-                    t.misses,
-                    t.latest.1[0],
-                    t.latest.1[1],
-                    t.mean_area_px(),
-                    m.map(|m| (m.rms_px, m.radius_px())),
-                    w.map(|m| (m.rms_px, m.radius_px(), m.centre_px))
-                );
-            }
-        }
-        let t_s = row.capture_time_us as f64 * 1e-6;
-        run.log.frames.push(log_frame(
-            &run.log.header,
-            t_s,
-            row.conveyor_angle_rad,
-            &points,
-            &effector_base_m,
-        ));
-        run.frames.push(FrameLabels {
-            trigger_id: row.trigger_id,
-            blobs: blobs.to_vec(),
-            points: points.to_vec(),
-        });
+        front_end.push(row, &pixels)?;
     }
-    Ok(run)
+    Ok(front_end.run)
 }
 
 #[cfg(test)]

@@ -59,8 +59,10 @@ pub struct ImageSettings {
     pub reference_mark_radius_m: f64,
     /// Radius of each feature mark on the part, m.
     pub feature_mark_radius_m: f64,
-    /// Radius of each gripper mark, m.
-    pub effector_mark_radius_m: f64,
+    /// Radii of the gripper's two marks (`EFFECTOR_MARKS_FLANGE_M` order),
+    /// m: unlike, so that which is which follows from their sizes (their
+    /// images' light differs by the square of the ratio at any height).
+    pub effector_mark_radii_m: [f64; 2],
     /// Bright objects on the disc that are no marks, for identification to
     /// refuse (0: none).
     pub distractors: usize,
@@ -97,7 +99,7 @@ impl Default for ImageSettings {
             centre_mark_radius_m: 0.012,
             reference_mark_radius_m: 0.012,
             feature_mark_radius_m: 0.008,
-            effector_mark_radius_m: 0.01,
+            effector_mark_radii_m: [0.016, 0.01],
             distractors: 0,
             distractor_radii_m: [0.005, 0.02],
             electrons_per_grey: 40.0,
@@ -149,7 +151,8 @@ impl ImageSettings {
             ("centre_mark_radius_m", self.centre_mark_radius_m),
             ("reference_mark_radius_m", self.reference_mark_radius_m),
             ("feature_mark_radius_m", self.feature_mark_radius_m),
-            ("effector_mark_radius_m", self.effector_mark_radius_m),
+            ("effector_mark_radii_m[0]", self.effector_mark_radii_m[0]),
+            ("effector_mark_radii_m[1]", self.effector_mark_radii_m[1]),
             ("distractor_radii_m[0]", self.distractor_radii_m[0]),
             ("distractor_radii_m[1]", self.distractor_radii_m[1]),
             ("electrons_per_grey", self.electrons_per_grey),

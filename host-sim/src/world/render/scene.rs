@@ -202,8 +202,8 @@ const GRIPPER_FINGERS: [([f64; 3], [f64; 3], f64); 2] = [
     ([0.014, 0.0, 0.085], [0.014, 0.0, 0.12], 0.007),
     ([-0.014, 0.0, 0.085], [-0.014, 0.0, 0.12], 0.007),
 ];
-const MARK_BAR_RADIUS_M: f64 = 0.011;
-const MARK_BAR_HALF_LENGTH_M: f64 = 0.062;
+const MARK_BAR_RADIUS_M: f64 = 0.017;
+const MARK_BAR_HALF_LENGTH_M: f64 = 0.068;
 
 /// The arm's capsule axes in the base frame at `q` (each `(a, b, radius, carries_marks)`).
 fn arm_axes(
@@ -236,13 +236,15 @@ fn arm_axes(
     for (a, b, r) in GRIPPER_FINGERS {
         axes.push((at(a), at(b), r, false));
     }
-    let bar_z = EFFECTOR_MARKS_FLANGE_M[0][2] + MARK_BAR_RADIUS_M;
-    axes.push((
-        at([-MARK_BAR_HALF_LENGTH_M, 0.0, bar_z]),
-        at([MARK_BAR_HALF_LENGTH_M, 0.0, bar_z]),
-        MARK_BAR_RADIUS_M,
-        true,
-    ));
+    // The bar runs through both marks' centres, its top at their height.
+    let [m0, m1] = EFFECTOR_MARKS_FLANGE_M.map(Vector3::from);
+    let along = (m1 - m0).normalize();
+    let middle = (m0 + m1) / 2.0 + Vector3::new(0.0, 0.0, MARK_BAR_RADIUS_M);
+    let end = |sign: f64| {
+        let p = middle + along * (sign * MARK_BAR_HALF_LENGTH_M);
+        at([p.x, p.y, p.z])
+    };
+    axes.push((end(-1.0), end(1.0), MARK_BAR_RADIUS_M, true));
     axes
 }
 
@@ -397,7 +399,11 @@ pub fn build_scene(workcell: &Workcell, frame: &FrameState, settings: &ImageSett
             kind: MarkKind::Effector(index as u8),
             centre_disc: flange.map(|f| (f * p).coords),
             normal_disc: flange.map(|f| -(f.rotation * Vector3::z())),
-            radius_m: settings.effector_mark_radius_m,
+            radius_m: settings
+                .effector_mark_radii_m
+                .get(index)
+                .copied()
+                .unwrap_or(settings.effector_mark_radii_m[0]),
         });
     }
 

@@ -25,24 +25,27 @@
 //!    rotating-frame positions are stored in a fixed order (by angle about
 //!    the disc centre), later each takes the label of the stored position it
 //!    alone is near;
-//! 6. the effector marks: the camera's projection of base-frame points is
-//!    fitted ([`projection`]), first from the middle of the two blobs that no
-//!    track explains when there are exactly two, then from the labelled
-//!    marks; each mark is the one blob near its projection.
+//! 6. the effector marks ([`effector`]): first from pairs of free blobs
+//!    (no disc mark's) whose light has the two marks' ratio and whose
+//!    geometry agrees with earlier pairs', then from the camera's projection
+//!    of base-frame points ([`projection`]) fitted from those pairs; each
+//!    mark is the one blob near its projection, of its light, seen there the
+//!    frame before, with no other blob near.
 //!
 //! Anything ambiguous, hidden or unexplained is left unlabelled: a dropped
 //! point costs a frame, a wrong label would corrupt the calibration.
 //!
 //! Working memory: [`Identifier::WORKING_MEMORY_BYTES`] (fixed, no heap).
 
+pub mod effector;
 pub mod lens;
 pub mod projection;
 pub mod track;
 
 use heapless::Vec;
 
+use self::effector::{EffectorCandidate, EffectorMarks};
 use self::lens::LensModel;
-use self::projection::BaseProjection;
 use self::track::Track;
 use super::{Blob, MAX_BLOBS};
 use crate::observation::{PixelPoint, MAX_PART_FEATURES};
@@ -100,20 +103,6 @@ const CENTRE_GATE_MIN_PX: f64 = 3.0;
 /// A feature takes a stored position's label within this share of the
 /// stored features' least spacing.
 const FEATURE_GATE_SHARE: f64 = 0.25;
-/// The effector marks' gate around their projections, px, and the fit's
-/// largest RMS to be trusted, px.
-const EFFECTOR_GATE_PX: f64 = 2.5;
-const PROJECTION_RMS_PX: f64 = 1.0;
-/// Frames of two unexplained blobs kept to bootstrap the projection, and
-/// the fewest to try it (each gives two points; the projection has 11
-/// unknowns).
-const MAX_PAIRS: usize = 9;
-const MIN_PAIRS: usize = 9;
-/// The best assignment must fit this many times better than the next.
-const PAIR_MARGIN: f64 = 10.0;
-/// Effector marks may be this factor off their size at the disc (nearer the camera).
-const EFFECTOR_SIZE_TOLERANCE: f64 = 2.2;
-
 /// Which mark a blob is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum MarkLabel {
@@ -271,66 +260,14 @@ pub struct Identifier {
     tracks: Vec<Followed, MAX_TRACKS>,
     disc: Option<DiscImage>,
     features_rotating: Vec<[f64; 2], MAX_PART_FEATURES>,
-    projection: BaseProjection,
-    pairs: Vec<([[f64; 3]; 2], [PixelPoint; 2]), MAX_PAIRS>,
+    /// The disc centre's image once found (it does not move).
+    centre_px: Option<PixelPoint>,
+    effector: EffectorMarks,
     /// The reference mark's mean flux, the yardstick of the other marks' sizes.
     reference_flux: Option<f64>,
 }
 
 impl Identifier {
-    /// Bootstrap of the projection: the frames showing exactly two
-    /// unexplained blobs of an effector mark's size. Which blob is which mark
-    /// is unknown; the assignment (fixed in the first pair, since only one of
-    /// the two global assignments fits once the gripper has turned) that
-    /// lets one projection explain all of them is taken, when it alone does.
-    fn solve_pairs(&mut self) {
-        let n = self.pairs.len();
-        if n < MIN_PAIRS {
-            return;
-        }
-        let mut best: Option<(u32, f64)> = None;
-        let mut second = f64::INFINITY;
-        for assignment in 0u32..(1u32 << (n - 1)) {
-            self.projection.clear();
-            let rms = self.fit_assignment(assignment).unwrap_or(f64::INFINITY);
-            match best {
-                Some((_, b)) if rms >= b => second = second.min(rms),
-                _ => {
-                    if let Some((_, b)) = best {
-                        second = second.min(b);
-                    }
-                    best = Some((assignment, rms));
-                }
-            }
-        }
-        self.projection.clear();
-        let Some((assignment, rms)) = best else {
-            return;
-        };
-        if rms > PROJECTION_RMS_PX || second < PAIR_MARGIN * rms.max(0.05) {
-            return;
-        }
-        self.fit_assignment(assignment);
-        self.pairs.clear();
-    }
-
-    /// Adds every stored pair to the projection, the pairs whose bit of
-    /// `assignment` is set (bit k - 1 for pair k; pair 0 fixes the naming)
-    /// with their blobs swapped, and refits: the fit's RMS, px.
-    fn fit_assignment(&mut self, assignment: u32) -> Option<f64> {
-        for (k, (base, pixels)) in self.pairs.iter().enumerate() {
-            let swap = k > 0 && (assignment >> (k - 1)) & 1 == 1;
-            let [a, b] = if swap {
-                [pixels[1], pixels[0]]
-            } else {
-                *pixels
-            };
-            self.projection.add(base[0], a);
-            self.projection.add(base[1], b);
-        }
-        self.projection.refit()
-    }
-
     /// Bytes of the identifier's state (all of its working memory).
     pub const WORKING_MEMORY_BYTES: usize = core::mem::size_of::<Self>();
 
@@ -342,8 +279,13 @@ impl Identifier {
             tracks: Vec::new(),
             disc: None,
             features_rotating: Vec::new(),
-            projection: BaseProjection::new([lens.cx, lens.cy], lens.f_px),
-            pairs: Vec::new(),
+            centre_px: None,
+            effector: EffectorMarks::new(
+                settings.diameters.effector_m,
+                settings.diameters.reference_m,
+                [lens.cx, lens.cy],
+                lens.f_px,
+            ),
             reference_flux: None,
         }
     }
@@ -361,7 +303,19 @@ impl Identifier {
 
     /// The base-frame projection's correspondences and RMS, px (diagnosis).
     pub fn projection_state(&self) -> (usize, f64) {
-        (self.projection.len(), self.projection.rms_px())
+        self.effector.projection_state()
+    }
+
+    /// Why the gripper's marks went unlabelled once the projection was
+    /// known, per mark (see [`EffectorMarks::refusals`]).
+    pub fn effector_refusals(&self) -> [[u32; 6]; 2] {
+        self.effector.refusals
+    }
+
+    /// This frame's pair of free blobs, if the pair stage saw one, with
+    /// their lights against the yardstick (diagnosis).
+    pub fn effector_pair(&self) -> Option<([PixelPoint; 2], [f64; 2])> {
+        self.effector.last_pair
     }
 
     /// Labels the `blobs` of the frame at `theta` (the encoder angle latched
@@ -394,18 +348,28 @@ impl Identifier {
             let _ = points.push(pixel.map(|p| (p, area, flux)));
         }
         // 2. Association, unique both ways.
-        let ambiguous = self.associate(theta, &points, &mut report);
+        let (ambiguous, near_disc_mark) = self.associate(theta, &points, &mut report);
         // 3-5. Disc marks.
         self.find_reference(theta);
         self.find_centre();
         self.find_features(theta);
         // 6. Effector marks.
-        let effector = self.find_effector(&points, &ambiguous, effector_base_m);
+        let effector =
+            self.find_effector(theta, &points, &ambiguous, &near_disc_mark, effector_base_m);
 
+        // Where the gripper's marks project now: a disc label there may be a
+        // gripper mark standing in a disc mark's place, and is not given.
+        let gripper_px = self.effector.projected_px();
         for followed in self.tracks.iter() {
             if let (Some(label), Some(blob), true) = (followed.label, followed.blob, followed.sure)
             {
                 if matches!(label, MarkLabel::Effector(_)) {
+                    continue;
+                }
+                let p = followed.track.latest.1;
+                if gripper_px.iter().flatten().any(|q| {
+                    libm::hypot(p[0] - q[0], p[1] - q[1]) <= effector::GATE_PX + OUTPUT_GATE_PX
+                }) {
                     continue;
                 }
                 if let Some(Some((pixel, _, _))) = points.get(blob) {
@@ -443,14 +407,27 @@ impl Identifier {
         report
     }
 
-    /// Matches tracks and blobs; returns which blobs were ambiguous.
+    /// Matches tracks and blobs; returns which blobs were ambiguous and
+    /// which lay near where a disc mark's track (one labelled, turning with
+    /// the disc or still on it) predicted its blob, whether taken or not (a
+    /// disc mark half hidden, refused for its light, is still no gripper
+    /// mark).
     fn associate(
         &mut self,
         theta: f64,
         points: &[Option<(PixelPoint, f64, f64)>],
         report: &mut IdentifyReport,
-    ) -> Vec<bool, MAX_BLOBS> {
+    ) -> (Vec<bool, MAX_BLOBS>, Vec<bool, MAX_BLOBS>) {
         let gate = self.settings.gate_px;
+        let mut disc_like: Vec<bool, MAX_TRACKS> = Vec::new();
+        for f in self.tracks.iter() {
+            let _ = disc_like
+                .push(!f.on_arm && (f.label.is_some() || Self::turning(f) || self.still(f)));
+        }
+        let mut near_disc_mark: Vec<bool, MAX_BLOBS> = Vec::new();
+        for _ in points {
+            let _ = near_disc_mark.push(false);
+        }
         let mut claims: Vec<u8, MAX_BLOBS> = Vec::new();
         let mut choice: Vec<Option<usize>, MAX_TRACKS> = Vec::new();
         for _ in points {
@@ -460,7 +437,7 @@ impl Identifier {
         let l = self.settings.reference_radius_m;
         let first_gate = self.settings.first_gate_px_per_rad;
         let mut innovation: Vec<f64, MAX_TRACKS> = Vec::new();
-        for followed in self.tracks.iter_mut() {
+        for (t, followed) in self.tracks.iter_mut().enumerate() {
             followed.blob = None;
             followed.sure = false;
             let track = &followed.track;
@@ -481,9 +458,15 @@ impl Identifier {
             let mut found = None;
             let mut count = 0;
             let mut nearest = f64::INFINITY;
+            let disc_mark = disc_like.get(t).copied().unwrap_or(false);
             for (i, point) in points.iter().enumerate() {
                 if let Some((p, _, _)) = point {
                     let d = libm::hypot(p[0] - predicted[0], p[1] - predicted[1]);
+                    if disc_mark && d <= reach + effector::CLEAR_PX {
+                        if let Some(near) = near_disc_mark.get_mut(i) {
+                            *near = true;
+                        }
+                    }
                     if d <= reach {
                         nearest = nearest.min(d);
                         count += 1;
@@ -567,7 +550,7 @@ impl Identifier {
                 }
             }
         }
-        ambiguous
+        (ambiguous, near_disc_mark)
     }
 
     fn has_label(&self, label: MarkLabel) -> bool {
@@ -868,111 +851,72 @@ impl Identifier {
         }
     }
 
+    /// The gripper's marks ([`effector`]): each blob with whether it may be
+    /// one (not ambiguous, no disc mark's: neither labelled as one nor
+    /// turning with the disc or still on it, unless taken for a gripper
+    /// mark before, nor near where a disc mark is known to be).
     fn find_effector(
         &mut self,
+        theta: f64,
         points: &[Option<(PixelPoint, f64, f64)>],
         ambiguous: &[bool],
+        near_disc_mark: &[bool],
         effector_base_m: &[[f64; 3]; 2],
     ) -> [Option<LabelledPoint>; 2] {
-        let mut found = [None, None];
-        if !effector_base_m.iter().flatten().all(|x| x.is_finite()) {
-            return found;
+        // Where the disc's marks are known to be, seen or not: the centre's
+        // image, and the reference and the part's features as the disc
+        // model turns them (a disc mark that reappears from under the arm
+        // starts a new track, which says nothing yet).
+        if let Some(centre) = self
+            .tracks
+            .iter()
+            .find(|f| f.label == Some(MarkLabel::DiscCentre))
+        {
+            self.centre_px = Some(centre.track.latest.1);
         }
-        if self.projection.trusted(PROJECTION_RMS_PX) {
-            let predicted = [
-                self.projection.project(effector_base_m[0]),
-                self.projection.project(effector_base_m[1]),
-            ];
-            for (k, slot) in found.iter_mut().enumerate() {
-                let Some(Some(p)) = predicted.get(k) else {
-                    continue;
-                };
-                let mut near: Vec<usize, MAX_BLOBS> = Vec::new();
-                for (i, point) in points.iter().enumerate() {
-                    if let Some((q, _, _)) = point {
-                        let close = predicted.iter().flatten().any(|other| {
-                            !core::ptr::eq(other, p)
-                                && libm::hypot(q[0] - other[0], q[1] - other[1]) <= EFFECTOR_GATE_PX
-                        });
-                        if libm::hypot(q[0] - p[0], q[1] - p[1]) <= EFFECTOR_GATE_PX {
-                            let _ = near.push(i);
-                            if close {
-                                let _ = near.push(i);
-                            }
-                        }
-                    }
-                }
-                if let [i] = near.as_slice() {
-                    if ambiguous.get(*i).copied().unwrap_or(true) {
-                        continue;
-                    }
-                    if let Some(Some((q, _, _))) = points.get(*i) {
-                        *slot = Some(LabelledPoint {
-                            label: MarkLabel::Effector(k as u8),
-                            pixel: *q,
-                            blob: *i,
-                        });
-                    }
-                }
-            }
-            // Each labelled mark refines the projection, unless it spoils it.
-            let before = self.projection.clone();
-            for (k, point) in found.iter().enumerate() {
-                if let (Some(point), Some(base)) = (point, effector_base_m.get(k)) {
-                    self.projection.add(*base, point.pixel);
-                }
-            }
-            if found.iter().any(Option::is_some) {
-                self.projection.refit();
-                if !self.projection.trusted(PROJECTION_RMS_PX) {
-                    self.projection = before;
-                }
-            }
-            for f in self.tracks.iter_mut() {
-                let on_arm = found.iter().flatten().any(|p| f.blob == Some(p.blob));
-                if on_arm {
-                    f.on_arm = true;
-                    f.label = None;
-                }
-            }
-            return found;
+        let mut disc_marks: Vec<PixelPoint, MAX_LABELS> = Vec::new();
+        if let Some(centre) = self.centre_px {
+            let _ = disc_marks.push(centre);
         }
-        // Bootstrap: exactly two blobs that no established track explains,
-        // both of an effector mark's size.
-        let Some(disc) = self.disc else {
-            return found;
-        };
-        let mut free: Vec<usize, MAX_BLOBS> = Vec::new();
-        for f in self.tracks.iter() {
-            if let Some(i) = f.blob {
-                if f.track.hits <= 2 && f.label.is_none() {
-                    let _ = free.push(i);
-                }
+        if let Some(disc) = self.disc {
+            let l = self.settings.reference_radius_m;
+            let _ = disc_marks.push(disc.pixel([l, 0.0], theta, l));
+            for p in self.features_rotating.iter() {
+                let _ = disc_marks.push(disc.pixel(*p, theta, l));
             }
         }
-        if let [i, j] = free.as_slice() {
-            let (Some(Some((p, area_p, _))), Some(Some((q, area_q, _)))) =
-                (points.get(*i), points.get(*j))
-            else {
-                return found;
-            };
-            let sized = |area: f64, k: usize| {
-                let expected = self
-                    .settings
-                    .diameters
-                    .effector_m
-                    .get(k)
-                    .copied()
-                    .unwrap_or(0.0);
-                Self::in_band(disc.diameter_m(area), expected, EFFECTOR_SIZE_TOLERANCE)
-            };
-            let sized_either = |area: f64| sized(area, 0) || sized(area, 1);
-            if sized_either(*area_p) && sized_either(*area_q) {
-                if self.pairs.is_full() {
-                    self.pairs.remove(0);
+        let keep_off = self.settings.gate_px + effector::CLEAR_PX;
+        let mut candidates: Vec<Option<EffectorCandidate>, MAX_BLOBS> = Vec::new();
+        for (i, point) in points.iter().enumerate() {
+            let candidate = point.map(|(pixel, _, flux)| {
+                let holder = self.tracks.iter().find(|f| f.blob == Some(i));
+                let on_disc = holder.is_some_and(|f| {
+                    !f.on_arm && (f.label.is_some() || Self::turning(f) || self.still(f))
+                });
+                EffectorCandidate {
+                    pixel,
+                    flux,
+                    free: !on_disc
+                        && !disc_marks
+                            .iter()
+                            .any(|q| libm::hypot(q[0] - pixel[0], q[1] - pixel[1]) <= keep_off)
+                        && !ambiguous.get(i).copied().unwrap_or(true)
+                        && !near_disc_mark.get(i).copied().unwrap_or(true),
                 }
-                let _ = self.pairs.push((*effector_base_m, [*p, *q]));
-                self.solve_pairs();
+            });
+            let _ = candidates.push(candidate);
+        }
+        let yardstick = self
+            .disc
+            .zip(self.reference_flux)
+            .map(|(disc, flux)| flux / (disc.scale_px_per_m * disc.scale_px_per_m));
+        let found = self
+            .effector
+            .identify(&candidates, effector_base_m, yardstick);
+        for f in self.tracks.iter_mut() {
+            if found.iter().flatten().any(|p| f.blob == Some(p.blob)) {
+                f.on_arm = true;
+                f.label = None;
             }
         }
         found

@@ -104,3 +104,163 @@ fn nothing_is_labelled_from_nothing() {
         Identifier::WORKING_MEMORY_BYTES
     );
 }
+
+/// The gripper's marks seen by a camera 2.2 m above the disc (0.3 m tilted
+/// about the image's x axis a little), looking down: image x along base X,
+/// image y along base -Y (a camera looking down sees the base plane
+/// mirrored), f = 290 px.
+mod gripper {
+    use super::super::effector::{EffectorCandidate, EffectorMarks};
+    use super::super::MarkLabel;
+
+    const F_PX: f64 = 290.0;
+    const CENTRE: [f64; 2] = [127.5, 127.5];
+    const DIAMETERS_M: [f64; 2] = [0.032, 0.02];
+    const REFERENCE_M: f64 = 0.024;
+    /// The reference's light over the disc's scale squared.
+    const YARDSTICK: f64 = 0.1;
+
+    fn camera(p: [f64; 3]) -> ([f64; 2], f64) {
+        let (x, y, z) = (p[0] - 0.6, -(p[1] + 0.1), 2.2 - p[2]);
+        let (yr, zr) = (y * 0.995 + z * 0.0998, -y * 0.0998 + z * 0.995);
+        ([F_PX * x / zr + CENTRE[0], F_PX * yr / zr + CENTRE[1]], zr)
+    }
+
+    /// The marks' base-frame centres at step `k`: the gripper sweeps and turns.
+    fn marks(k: usize) -> [[f64; 3]; 2] {
+        let t = k as f64 * 0.05;
+        let centre = [
+            0.5 + 0.2 * libm::sin(t),
+            -0.1 + 0.25 * libm::cos(0.7 * t),
+            0.35 + 0.1 * libm::sin(1.3 * t),
+        ];
+        let yaw = 0.4 * t;
+        let across = [-libm::sin(yaw) * 0.05, libm::cos(yaw) * 0.05];
+        [
+            [centre[0] + across[0], centre[1] + across[1], centre[2]],
+            [centre[0] - across[0], centre[1] - across[1], centre[2]],
+        ]
+    }
+
+    /// Mark `k`'s blob: its light as a disc mark of its size at its depth
+    /// would send, times 0.8 (what the renderer's marks measure).
+    fn blob(base: [f64; 3], k: usize) -> EffectorCandidate {
+        let (pixel, depth) = camera(base);
+        let scale = F_PX / depth;
+        let area = (DIAMETERS_M[k] / REFERENCE_M).powi(2);
+        EffectorCandidate {
+            pixel,
+            flux: 0.8 * YARDSTICK * scale * scale * area,
+            free: true,
+        }
+    }
+
+    fn stage() -> EffectorMarks {
+        EffectorMarks::new(DIAMETERS_M, REFERENCE_M, CENTRE, F_PX)
+    }
+
+    #[test]
+    fn unlike_marks_are_told_apart_and_then_followed_by_the_projection() {
+        let mut stage = stage();
+        let mut labelled = 0;
+        for k in 0..120 {
+            let base = marks(k);
+            // A free blob far away, and a disc mark's blob that is not free.
+            let far = EffectorCandidate {
+                pixel: [20.0, 20.0 + k as f64],
+                flux: 50.0,
+                free: k % 2 == 0,
+            };
+            let disc = EffectorCandidate {
+                pixel: [200.0, 60.0],
+                flux: 80.0,
+                free: false,
+            };
+            let blobs = [
+                Some(blob(base[1], 1)),
+                Some(disc),
+                Some(blob(base[0], 0)),
+                Some(far),
+            ];
+            let found = stage.identify(&blobs, &base, Some(YARDSTICK));
+            for (k, point) in found.iter().enumerate() {
+                if let Some(point) = point {
+                    labelled += 1;
+                    assert_eq!(point.label, MarkLabel::Effector(k as u8));
+                    let expected = if k == 0 { 2 } else { 0 };
+                    assert_eq!(point.blob, expected, "mark {k} on the wrong blob");
+                }
+            }
+        }
+        // Pairs only in the frames without the far free blob, until the
+        // projection is fitted; then every frame.
+        assert!(labelled > 120, "{labelled} labels");
+        let (points, rms) = stage.projection_state();
+        assert!(points >= 20 && rms < 0.01, "{points} {rms}");
+    }
+
+    #[test]
+    fn a_half_hidden_mark_or_a_blob_in_a_hidden_marks_place_is_not_labelled() {
+        let mut stage = stage();
+        // Mark 0 half hidden: dimmer than mark 1, the light ratio would
+        // take the pair the other way round; its light against the
+        // yardstick refuses it.
+        for k in 0..40 {
+            let base = marks(k);
+            let mut dim = blob(base[0], 0);
+            dim.flux = blob(base[1], 1).flux / 2.56;
+            let found =
+                stage.identify(&[Some(dim), Some(blob(base[1], 1))], &base, Some(YARDSTICK));
+            assert!(found.iter().all(Option::is_none), "step {k}: {found:?}");
+        }
+        // Whole marks: labelled once two pairs from 5 cm apart agree, and
+        // the projection is fitted.
+        let mut k = 40;
+        while stage.projection_state().0 < 24 {
+            let base = marks(k);
+            stage.identify(
+                &[Some(blob(base[0], 0)), Some(blob(base[1], 1))],
+                &base,
+                Some(YARDSTICK),
+            );
+            k += 1;
+            assert!(k < 200, "the projection was never fitted");
+        }
+        // Mark 1 hidden, and a part feature's blob (less light) right where
+        // it should be, seen there the frame before too: refused.
+        for _ in 0..5 {
+            let base = marks(k);
+            let mut feature = blob(base[1], 1);
+            feature.flux *= 0.4;
+            let found = stage.identify(
+                &[Some(blob(base[0], 0)), Some(feature)],
+                &base,
+                Some(YARDSTICK),
+            );
+            assert!(found[1].is_none(), "{found:?}");
+            k += 1;
+        }
+        // Mark 1 beside another blob (crowded): refused.
+        let base = marks(k);
+        let mut beside = blob(base[1], 1);
+        beside.pixel[0] += 3.0;
+        beside.flux = 30.0;
+        let found = stage.identify(
+            &[Some(blob(base[0], 0)), Some(blob(base[1], 1)), Some(beside)],
+            &base,
+            Some(YARDSTICK),
+        );
+        assert!(found[1].is_none(), "{found:?}");
+        // Without the disc's yardstick (the disc not found yet), nothing.
+        let mut fresh = EffectorMarks::new(DIAMETERS_M, REFERENCE_M, CENTRE, F_PX);
+        for k in 0..40 {
+            let base = marks(k);
+            let found = fresh.identify(
+                &[Some(blob(base[0], 0)), Some(blob(base[1], 1))],
+                &base,
+                None,
+            );
+            assert!(found.iter().all(Option::is_none));
+        }
+    }
+}

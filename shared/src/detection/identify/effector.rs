@@ -1,0 +1,507 @@
+//! The gripper's two marks: which blob is which, from what the controller
+//! knows and never from the truth: the marks' sizes (unlike: the light of
+//! mark 0's image is `(d0 / d1)^2` times mark 1's at any height, for the two
+//! lie level when the gripper points down), their base-frame centres latched
+//! with every frame (joint encoders and kinematics), and the camera's
+//! projection of base-frame points once it is fitted ([`super::projection`]).
+//!
+//! Two stages:
+//! 1. **Pairs**, before the projection is known (and only once the disc is,
+//!    so that disc marks are told from the rest): a frame with exactly two
+//!    free blobs (no disc mark's, not ambiguous, [`CLEAR_PX`] from every
+//!    other blob) whose light differs by the marks' ratio is a pair: the
+//!    brighter is mark 0. Each blob's light against a disc mark of its size
+//!    at the pair's scale (the yardstick) must be a whole mark's (a half
+//!    hidden mark 0 would pass the ratio the other way round). Its
+//!    *signature* is the angle of the image vector from mark 0 to mark 1
+//!    plus the angle of the base vector between them (constant for a camera
+//!    looking down: the image of the level plane is a mirrored rotation of
+//!    it, up to the camera's tilt) and the separation against the square
+//!    root of the pair's light (constant: both scale alike with the marks'
+//!    distance from the camera). Labels are given only once a pair agrees
+//!    with an earlier one from `CONFIRM_MOVE_M` away that moved rigidly
+//!    (its midpoint, placed in the camera frame at the depth the separation
+//!    gives, moved as far as the base-frame one), then only to pairs that
+//!    agree with that signature and moved rigidly; each feeds the projection.
+//! 2. **Projection**, once it holds `MIN_PROJECTION_POINTS` and explains
+//!    them: mark `k` is the one blob (of all) in the gate around its
+//!    projection, free, [`CLEAR_PX`] from every other blob, of mark `k`'s
+//!    light and not the other's (against the square of the projected
+//!    separation, which scales like it with distance), and it moved since
+//!    the frame before, from the one blob in the gate then, as the
+//!    projection did (a blob that appears where a hidden mark should be is
+//!    refused).
+//!
+//! Anything else leaves the mark unlabelled: a dropped point costs a frame,
+//! a wrong one would corrupt the base's calibration.
+
+use heapless::Vec;
+
+use super::projection::BaseProjection;
+use super::{LabelledPoint, MarkLabel};
+use crate::detection::MAX_BLOBS;
+use crate::observation::PixelPoint;
+
+/// The gate around a mark's projection, px.
+pub const GATE_PX: f64 = 2.5;
+/// No other blob within this of a labelled mark's blob, px (a mark beside
+/// another is crowded: its blob may be displaced or merged).
+pub const CLEAR_PX: f64 = 5.0;
+/// The projection's largest RMS to be trusted, px.
+const PROJECTION_RMS_PX: f64 = 1.0;
+/// The light ratio of the two marks may be off by this factor (light falls
+/// off across the image, blur spreads the small mark's rim).
+const RATIO_TOLERANCE: f64 = 1.5;
+/// Signatures agree within these: angle, rad; separation against light, share.
+const SIGNATURE_ANGLE_RAD: f64 = 0.15;
+const SIGNATURE_SCALE_SHARE: f64 = 0.2;
+/// Unconfirmed signatures kept.
+const SIGNATURE_CANDIDATES: usize = 4;
+/// A mark's light against the square of the projected separation may be
+/// this factor off its running mean.
+const LIGHT_TOLERANCE: f64 = 1.3;
+/// Weight of a new sighting in the running means.
+const MEAN_WEIGHT: f64 = 0.1;
+/// A gripper mark's light against a disc mark's of its size at its scale
+/// (the gain) must lie in this band. Measured on the rendered picks of
+/// seeds 1 and 2: 0.6 to 1.3 for whole marks (blur takes more of a small
+/// mark's contrast than the dark backing adds); a pair whose mark 0 is half
+/// hidden, which the light ratio would take the other way round, has both
+/// gains below 0.5.
+const GAIN_MIN: f64 = 0.55;
+const GAIN_MAX: f64 = 2.0;
+/// The base-frame marks must lie this far apart, m (the gripper's drawing).
+const MIN_BASE_SEPARATION_M: f64 = 0.02;
+
+/// Two pairs confirm a signature only when the gripper moved this much
+/// between them, m (a wrong pair seen twice in one place would agree with
+/// itself).
+const CONFIRM_MOVE_M: f64 = 0.05;
+/// Two pairs' midpoints, placed in the camera frame at the depth their
+/// separation gives, must lie as far apart as their base-frame midpoints
+/// (a rigid motion keeps distances) within this plus [`RIGID_SHARE`] of it, m.
+const RIGID_M: f64 = 0.05;
+const RIGID_SHARE: f64 = 0.1;
+/// A mark's blob must have moved since the frame before as its projection
+/// did, within this, px.
+const MOTION_PX: f64 = 1.5;
+/// The projection labels on its own once it holds this many points.
+const MIN_PROJECTION_POINTS: usize = 20;
+
+/// A pair's signature and where it was.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Signature {
+    /// Image angle of mark 0 to mark 1 plus base angle of the same, rad.
+    angle_rad: f64,
+    /// Image separation over the square root of the pair's light.
+    scale: f64,
+    /// The marks' midpoint in the camera frame, at the depth that makes the
+    /// image separation the base-frame one (the marks lie level, about
+    /// square to the camera's axis), m.
+    camera_m: [f64; 3],
+    /// The same midpoint in the base frame, m.
+    base_m: [f64; 3],
+}
+
+impl Signature {
+    /// The same camera and marks: the same angle and scale.
+    fn agrees(&self, other: &Signature) -> bool {
+        let d = libm::remainder(self.angle_rad - other.angle_rad, core::f64::consts::TAU);
+        d.abs() <= SIGNATURE_ANGLE_RAD
+            && (self.scale - other.scale).abs() <= SIGNATURE_SCALE_SHARE * other.scale
+    }
+
+    /// The gripper moved between the two as a rigid body would be seen.
+    fn rigid_with(&self, other: &Signature) -> bool {
+        let moved = distance3(self.base_m, other.base_m);
+        (distance3(self.camera_m, other.camera_m) - moved).abs() <= RIGID_M + RIGID_SHARE * moved
+    }
+}
+
+/// One frame's blob as the effector stage sees it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EffectorCandidate {
+    /// Pinhole pixel.
+    pub pixel: PixelPoint,
+    /// Flux (area times mean contrast).
+    pub flux: f64,
+    /// No disc mark's, not ambiguous: it may be a gripper mark.
+    pub free: bool,
+}
+
+/// The effector stage's state over a run.
+#[derive(Debug, Clone)]
+pub struct EffectorMarks {
+    /// `(d0 / d1)^2`: mark 0's light over mark 1's.
+    light_ratio: f64,
+    /// Each mark's diameter over the reference mark's, squared.
+    area_over_reference: [f64; 2],
+    /// The pinhole camera's principal point and focal length, px.
+    centre: PixelPoint,
+    f_px: f64,
+    projection: BaseProjection,
+    /// The confirmed signature and the last pair that agreed with it.
+    signature: Option<(Signature, Signature)>,
+    unconfirmed: Vec<Signature, SIGNATURE_CANDIDATES>,
+    /// Each mark's light over the square of the marks' image separation (running mean).
+    light: [Option<f64>; 2],
+    /// Each mark's projection in the frame before (the projection's stage).
+    previous_px: [Option<PixelPoint>; 2],
+    /// The one blob in each mark's gate in the frame before, if one was.
+    previous_blob_px: [Option<PixelPoint>; 2],
+    /// Why each mark went unlabelled in the projection's stage, by reason
+    /// (diagnosis: none in gate, two in gate, not free, crowded, not seen
+    /// there before, light).
+    pub refusals: [[u32; 6]; 2],
+    /// The last pair's blobs (mark 0's, mark 1's) and their lights against
+    /// the yardstick (diagnosis).
+    pub last_pair: Option<([PixelPoint; 2], [f64; 2])>,
+}
+
+impl EffectorMarks {
+    /// A fresh stage for marks of diameters `diameters_m` under a camera of
+    /// focal length `f_px` and principal point `centre`.
+    pub fn new(diameters_m: [f64; 2], reference_m: f64, centre: PixelPoint, f_px: f64) -> Self {
+        let [d0, d1] = diameters_m;
+        let area_over_reference = diameters_m.map(|d| {
+            if reference_m > 0.0 {
+                (d / reference_m) * (d / reference_m)
+            } else {
+                f64::NAN
+            }
+        });
+        let light_ratio = if d0 > 0.0 && d1 > 0.0 {
+            (d0 / d1) * (d0 / d1)
+        } else {
+            f64::NAN
+        };
+        Self {
+            light_ratio,
+            area_over_reference,
+            centre,
+            f_px,
+            projection: BaseProjection::new(centre, f_px),
+            signature: None,
+            unconfirmed: Vec::new(),
+            light: [None; 2],
+            previous_px: [None; 2],
+            previous_blob_px: [None; 2],
+            refusals: [[0; 6]; 2],
+            last_pair: None,
+        }
+    }
+
+    /// Where the projection put the marks in the frame just identified,
+    /// once it is trusted (`None` before, or when a mark projects nowhere).
+    pub fn projected_px(&self) -> [Option<PixelPoint>; 2] {
+        self.previous_px
+    }
+
+    /// The projection's correspondences and RMS, px (diagnosis).
+    pub fn projection_state(&self) -> (usize, f64) {
+        (self.projection.len(), self.projection.rms_px())
+    }
+
+    /// The two marks are unlike enough to be told apart by their light.
+    fn unlike(&self) -> bool {
+        self.light_ratio.is_finite() && self.light_ratio >= RATIO_TOLERANCE * RATIO_TOLERANCE
+    }
+
+    /// Labels the gripper's marks among `blobs` (index = the frame's blob
+    /// index), whose base-frame centres are `base_m`.
+    /// `yardstick`: the reference mark's light over the square of the
+    /// disc's image scale (px per m), known once the disc is: a mark of the
+    /// reference's size at scale `s` sends about `yardstick * s^2`; before,
+    /// no pair is taken (nor can what turns with the disc be told).
+    pub fn identify(
+        &mut self,
+        blobs: &[Option<EffectorCandidate>],
+        base_m: &[[f64; 3]; 2],
+        yardstick: Option<f64>,
+    ) -> [Option<LabelledPoint>; 2] {
+        self.last_pair = None;
+        let disc_known = yardstick.is_some_and(|y| y.is_finite() && y > 0.0);
+        let usable = base_m.iter().flatten().all(|x| x.is_finite())
+            && distance3(base_m[0], base_m[1]) >= MIN_BASE_SEPARATION_M
+            && self.unlike()
+            && disc_known
+            && self.f_px > 0.0;
+        if !usable {
+            self.previous_px = [None; 2];
+            self.previous_blob_px = [None; 2];
+            return [None, None];
+        }
+        if self.projection.len() >= MIN_PROJECTION_POINTS
+            && self.projection.trusted(PROJECTION_RMS_PX)
+        {
+            self.by_projection(blobs, base_m)
+        } else {
+            self.previous_px = [None; 2];
+            self.previous_blob_px = [None; 2];
+            self.by_pair(blobs, base_m, yardstick.unwrap_or(f64::NAN))
+        }
+    }
+
+    /// Stage 1: the frame's one pair of free blobs.
+    fn by_pair(
+        &mut self,
+        blobs: &[Option<EffectorCandidate>],
+        base_m: &[[f64; 3]; 2],
+        yardstick: f64,
+    ) -> [Option<LabelledPoint>; 2] {
+        let mut free: Vec<usize, MAX_BLOBS> = Vec::new();
+        for (i, b) in blobs.iter().enumerate() {
+            if b.is_some_and(|b| b.free) {
+                let _ = free.push(i);
+            }
+        }
+        let [i, j] = free.as_slice() else {
+            return [None, None];
+        };
+        let (Some(Some(a)), Some(Some(b))) = (blobs.get(*i), blobs.get(*j)) else {
+            return [None, None];
+        };
+        if !clear_of_others(blobs, &[*i, *j], a.pixel)
+            || !clear_of_others(blobs, &[*i, *j], b.pixel)
+        {
+            return [None, None];
+        }
+        // The brighter is mark 0; its light must be the marks' ratio times the other's.
+        let ((i0, m0), (i1, m1)) = if a.flux >= b.flux {
+            ((*i, a), (*j, b))
+        } else {
+            ((*j, b), (*i, a))
+        };
+        if m1.flux <= 0.0 || !within(m0.flux / m1.flux, self.light_ratio, RATIO_TOLERANCE) {
+            return [None, None];
+        }
+        let image = [m1.pixel[0] - m0.pixel[0], m1.pixel[1] - m0.pixel[1]];
+        let separation_px = libm::hypot(image[0], image[1]);
+        let base = [base_m[1][0] - base_m[0][0], base_m[1][1] - base_m[0][1]];
+        if libm::hypot(base[0], base[1]) < MIN_BASE_SEPARATION_M || separation_px < 1.0 {
+            return [None, None];
+        }
+        // Each mark's light against a disc mark of its size at the pair's scale.
+        let scale = separation_px / distance3(base_m[0], base_m[1]);
+        let gains = [(0, m0.flux), (1, m1.flux)].map(|(k, flux)| {
+            flux / (yardstick
+                * scale
+                * scale
+                * self.area_over_reference.get(k).copied().unwrap_or(f64::NAN))
+        });
+        self.last_pair = Some(([m0.pixel, m1.pixel], gains));
+        if !gains.iter().all(|g| (GAIN_MIN..=GAIN_MAX).contains(g)) {
+            return [None, None];
+        }
+        // The midpoint in the camera frame, at the depth the separation gives.
+        let depth_m = self.f_px * distance3(base_m[0], base_m[1]) / separation_px;
+        let middle = [
+            (m0.pixel[0] + m1.pixel[0]) / 2.0,
+            (m0.pixel[1] + m1.pixel[1]) / 2.0,
+        ];
+        let signature = Signature {
+            angle_rad: libm::atan2(image[1], image[0]) + libm::atan2(base[1], base[0]),
+            scale: separation_px / libm::sqrt(m0.flux + m1.flux),
+            camera_m: [
+                depth_m * (middle[0] - self.centre[0]) / self.f_px,
+                depth_m * (middle[1] - self.centre[1]) / self.f_px,
+                depth_m,
+            ],
+            base_m: [
+                (base_m[0][0] + base_m[1][0]) / 2.0,
+                (base_m[0][1] + base_m[1][1]) / 2.0,
+                (base_m[0][2] + base_m[1][2]) / 2.0,
+            ],
+        };
+        match self.signature {
+            Some((known, last)) => {
+                if !known.agrees(&signature)
+                    || !last.rigid_with(&signature)
+                    || !known.rigid_with(&signature)
+                {
+                    return [None, None];
+                }
+                self.signature = Some((known, signature));
+            }
+            None => {
+                // Confirmed by an earlier pair from elsewhere that agrees.
+                let confirmed = self.unconfirmed.iter().any(|s| {
+                    s.agrees(&signature)
+                        && s.rigid_with(&signature)
+                        && distance3(s.base_m, signature.base_m) >= CONFIRM_MOVE_M
+                });
+                if !confirmed {
+                    if self.unconfirmed.is_full() {
+                        self.unconfirmed.remove(0);
+                    }
+                    let _ = self.unconfirmed.push(signature);
+                    return [None, None];
+                }
+                self.signature = Some((signature, signature));
+                self.unconfirmed.clear();
+            }
+        }
+        let separation_sq = separation_px * separation_px;
+        self.learn_light(0, m0.flux / separation_sq);
+        self.learn_light(1, m1.flux / separation_sq);
+        self.projection.add(base_m[0], m0.pixel);
+        self.projection.add(base_m[1], m1.pixel);
+        self.projection.refit();
+        [
+            Some(labelled(0, m0.pixel, i0)),
+            Some(labelled(1, m1.pixel, i1)),
+        ]
+    }
+
+    fn learn_light(&mut self, k: usize, value: f64) {
+        if let Some(slot) = self.light.get_mut(k) {
+            *slot = Some(match *slot {
+                Some(mean) => mean + MEAN_WEIGHT * (value - mean),
+                None => value,
+            });
+        }
+    }
+
+    /// Stage 2: each mark where the projection puts it.
+    fn by_projection(
+        &mut self,
+        blobs: &[Option<EffectorCandidate>],
+        base_m: &[[f64; 3]; 2],
+    ) -> [Option<LabelledPoint>; 2] {
+        let predicted = [
+            self.projection.project(base_m[0]),
+            self.projection.project(base_m[1]),
+        ];
+        let previous = self.previous_px;
+        let previous_blob = self.previous_blob_px;
+        self.previous_px = predicted;
+        self.previous_blob_px = [None; 2];
+        let [Some(p0), Some(p1)] = predicted else {
+            return [None, None];
+        };
+        let separation_sq = (p1[0] - p0[0]) * (p1[0] - p0[0]) + (p1[1] - p0[1]) * (p1[1] - p0[1]);
+        if separation_sq < 1.0 {
+            return [None, None];
+        }
+        let mut found = [None, None];
+        for (k, slot) in found.iter_mut().enumerate() {
+            let Some(Some(p)) = predicted.get(k) else {
+                continue;
+            };
+            // Every blob in the gate, free or not: exactly one.
+            let mut in_gate = blobs
+                .iter()
+                .enumerate()
+                .filter_map(|(i, b)| b.map(|b| (i, b)))
+                .filter(|(_, b)| distance(b.pixel, *p) <= GATE_PX);
+            let refuse = |r: &mut [[u32; 6]; 2], reason: usize| {
+                if let Some(c) = r.get_mut(k).and_then(|r| r.get_mut(reason)) {
+                    *c += 1;
+                }
+            };
+            let (first, second) = (in_gate.next(), in_gate.next());
+            let Some((i, blob)) = first else {
+                refuse(&mut self.refusals, 0);
+                continue;
+            };
+            if second.is_some() {
+                refuse(&mut self.refusals, 1);
+                continue;
+            }
+            if let Some(slot) = self.previous_blob_px.get_mut(k) {
+                *slot = Some(blob.pixel);
+            }
+            if !blob.free {
+                refuse(&mut self.refusals, 2);
+                continue;
+            }
+            if !clear_of_others(blobs, &[i], blob.pixel) {
+                refuse(&mut self.refusals, 3);
+                continue;
+            }
+            // The one blob in its gate the frame before too, and moved
+            // since as the mark's projection did.
+            let moved_alike = match (previous.get(k), previous_blob.get(k)) {
+                (Some(Some(before)), Some(Some(then))) => {
+                    let image = [blob.pixel[0] - then[0], blob.pixel[1] - then[1]];
+                    let mark = [p[0] - before[0], p[1] - before[1]];
+                    libm::hypot(image[0] - mark[0], image[1] - mark[1]) <= MOTION_PX
+                }
+                _ => false,
+            };
+            if !moved_alike {
+                refuse(&mut self.refusals, 4);
+                continue;
+            }
+            // Its light is this mark's, not the other's.
+            let light = blob.flux / separation_sq;
+            let (Some(Some(own)), Some(Some(other))) = (self.light.get(k), self.light.get(1 - k))
+            else {
+                continue;
+            };
+            let own_off = libm::fabs(libm::log(light / own));
+            let other_off = libm::fabs(libm::log(light / other));
+            if !within(light, *own, LIGHT_TOLERANCE) || other_off <= own_off {
+                refuse(&mut self.refusals, 5);
+                continue;
+            }
+            *slot = Some(labelled(k, blob.pixel, i));
+        }
+        // Each labelled mark refines the projection and its light, unless it spoils the fit.
+        let before = self.projection.clone();
+        for (k, point) in found.iter().enumerate() {
+            if let (Some(point), Some(base)) = (point, base_m.get(k)) {
+                self.projection.add(*base, point.pixel);
+            }
+        }
+        if found.iter().any(Option::is_some) {
+            self.projection.refit();
+            if !self.projection.trusted(PROJECTION_RMS_PX) {
+                self.projection = before;
+            }
+        }
+        for (k, point) in found.iter().enumerate() {
+            if let Some(point) = point {
+                let flux = blobs
+                    .get(point.blob)
+                    .copied()
+                    .flatten()
+                    .map_or(0.0, |b| b.flux);
+                self.learn_light(k, flux / separation_sq);
+            }
+        }
+        found
+    }
+}
+
+fn labelled(k: usize, pixel: PixelPoint, blob: usize) -> LabelledPoint {
+    LabelledPoint {
+        label: MarkLabel::Effector(k as u8),
+        pixel,
+        blob,
+    }
+}
+
+fn distance(a: PixelPoint, b: PixelPoint) -> f64 {
+    libm::hypot(a[0] - b[0], a[1] - b[1])
+}
+
+fn distance3(a: [f64; 3], b: [f64; 3]) -> f64 {
+    libm::sqrt(
+        (a[0] - b[0]) * (a[0] - b[0])
+            + (a[1] - b[1]) * (a[1] - b[1])
+            + (a[2] - b[2]) * (a[2] - b[2]),
+    )
+}
+
+/// No blob but those of `own` lies within [`CLEAR_PX`] of `p`.
+fn clear_of_others(blobs: &[Option<EffectorCandidate>], own: &[usize], p: PixelPoint) -> bool {
+    !blobs
+        .iter()
+        .enumerate()
+        .any(|(i, b)| !own.contains(&i) && b.is_some_and(|b| distance(b.pixel, p) <= CLEAR_PX))
+}
+
+fn within(measured: f64, expected: f64, tolerance: f64) -> bool {
+    measured >= expected / tolerance && measured <= expected * tolerance
+}
