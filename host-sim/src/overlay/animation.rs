@@ -79,23 +79,11 @@ impl Canvas {
     /// a fraction of the size of [`Canvas::write_png`]'s (the sensor's
     /// noise mostly falls between two of the coarser greys), for pages.
     pub fn write_png_indexed(&self, path: &Path) -> Result<()> {
-        let file =
-            File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-        let mut encoder =
-            png::Encoder::new(BufWriter::new(file), self.width as u32, self.height as u32);
-        encoder.set_color(png::ColorType::Indexed);
-        encoder.set_depth(png::BitDepth::Eight);
-        encoder.set_palette(palette());
-        encoder.set_compression(png::Compression::Best);
-        let mut writer = encoder
-            .write_header()
-            .with_context(|| format!("writing {}", path.display()))?;
-        writer
-            .write_image_data(&indexed(self))
-            .with_context(|| format!("writing {}", path.display()))?;
-        writer
-            .finish()
-            .with_context(|| format!("writing {}", path.display()))
+        self.write_png_with(path, &indexed(self), |encoder| {
+            encoder.set_color(png::ColorType::Indexed);
+            encoder.set_palette(palette());
+            encoder.set_compression(png::Compression::Best);
+        })
     }
 }
 

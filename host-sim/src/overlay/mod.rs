@@ -139,17 +139,30 @@ impl Canvas {
 
     /// Writes the canvas as an RGB PNG.
     pub fn write_png(&self, path: &Path) -> Result<()> {
+        self.write_png_with(path, &self.rgb, |encoder| {
+            encoder.set_color(png::ColorType::Rgb);
+        })
+    }
+
+    /// Writes `data` (8 bits a sample) as a PNG of the canvas's size, the
+    /// encoder set up by `setup` (colour type, palette, compression).
+    fn write_png_with(
+        &self,
+        path: &Path,
+        data: &[u8],
+        setup: impl FnOnce(&mut png::Encoder<'_, BufWriter<File>>),
+    ) -> Result<()> {
         let file =
             File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
         let mut encoder =
             png::Encoder::new(BufWriter::new(file), self.width as u32, self.height as u32);
-        encoder.set_color(png::ColorType::Rgb);
         encoder.set_depth(png::BitDepth::Eight);
+        setup(&mut encoder);
         let mut writer = encoder
             .write_header()
             .with_context(|| format!("writing {}", path.display()))?;
         writer
-            .write_image_data(&self.rgb)
+            .write_image_data(data)
             .with_context(|| format!("writing {}", path.display()))?;
         writer
             .finish()
