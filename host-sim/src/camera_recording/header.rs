@@ -46,6 +46,10 @@ pub struct RecordingHeader {
     pub disc_center: MarkSpec,
     pub reference: MarkSpec,
     pub part_feature: MarkSpec,
+    /// Part feature 0's mark when it differs from the others (`marks.part_key`,
+    /// optional): the key from which the features are numbered, counter-
+    /// clockwise seen from the camera's side of the disc.
+    pub part_key: Option<MarkSpec>,
     /// The gripper's marks, two or more; mark `i` is columns `e{i}_base_*`.
     pub effector: Vec<MarkSpec>,
     pub disc_radius_m: f64,
@@ -223,6 +227,11 @@ impl RecordingHeader {
             disc_center: marks.mark("disc_center")?,
             reference: marks.mark("reference")?,
             part_feature: marks.mark("part_feature")?,
+            part_key: if marks.map.contains_key("part_key") {
+                Some(marks.mark("part_key")?)
+            } else {
+                None
+            },
             effector,
             disc_radius_m: root.positive("disc_radius_m")?,
         })
@@ -232,7 +241,7 @@ impl RecordingHeader {
     pub fn to_json(&self) -> String {
         let mark =
             |m: &MarkSpec| json!({"diameter_m": m.diameter_m, "polarity": m.polarity.name()});
-        json!({
+        let mut value = json!({
             "type": "recording",
             "version": RECORDING_VERSION,
             "camera": {
@@ -249,7 +258,10 @@ impl RecordingHeader {
                 "effector": self.effector.iter().map(mark).collect::<Vec<_>>(),
             },
             "disc_radius_m": self.disc_radius_m,
-        })
-        .to_string()
+        });
+        if let (Some(key), Some(marks)) = (&self.part_key, value.get_mut("marks")) {
+            marks["part_key"] = mark(key);
+        }
+        value.to_string()
     }
 }

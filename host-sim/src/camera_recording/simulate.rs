@@ -102,6 +102,8 @@ fn header_of(world: &World, renderer: &Renderer) -> RecordingHeader {
         disc_center: bright(settings.centre_mark_radius_m),
         reference: bright(settings.reference_mark_radius_m),
         part_feature: bright(settings.feature_mark_radius_m),
+        part_key: (settings.key_feature_mark_radius_m > 0.0)
+            .then(|| bright(settings.key_feature_mark_radius_m)),
         effector: settings
             .effector_mark_radii_m
             .iter()
@@ -155,44 +157,44 @@ pub struct SimulatedFrame<'a> {
     pub ideal: ObservationFrame,
 }
 
-/// Runs the pick of `experiment` on the workcell of `seed` and hands each
-/// rendered frame (at most `max_frames`, every `stride`-th trigger) to
-/// `sink`, in order: what [`record_pick`] writes and what
-/// `host-sim vision-campaign` feeds to the front end without a disk.
-pub fn simulate_pick(
-    experiment: &PickExperiment,
-    seed: u64,
-    max_frames: usize,
-    stride: usize,
-    sink: &mut dyn FnMut(SimulatedFrame<'_>) -> Result<()>,
-) -> Result<RecordedRun> {
-    let settings = experiment.image;
-    let exposure_s = settings.exposure_ms / 1000.0;
-    let mut renderer: Option<Renderer> = None;
-    let mut headers: Option<(RecordingHeader, shared::observation::LogHeader)> = None;
-    let mut noise_rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7ec0_4d1e);
-    let mut frame = GrayFrame {
-        width: 0,
-        height: 0,
-        pixels: Vec::new(),
-    };
-    let mut triggers = 0usize;
-    let mut frames = 0usize;
-    let mut origin: Option<(f64, f64)> = None;
-    let mut link = FramedLink::new(InProcessLink::new());
-    let mut observe = |world: &World, command: &shared::protocol::ActuatorCommand| -> Result<()> {
-        if command.camera_trigger.is_none() {
-            return Ok(());
+/// Renders the world's camera frame at a trigger as a recording has it: the
+/// image through the lens with light and noise, what the cell latches (the
+/// encoder angle, the gripper marks from the joint encoders), and beside them,
+/// for scoring only, the truth and the ideal labelled frame. One per run: the
+/// latched angle counts from the first frame it renders.
+pub struct FrameRenderer {
+    settings: crate::scenario::pick::ImageSettings,
+    renderer: Option<Renderer>,
+    headers: Option<(RecordingHeader, shared::observation::LogHeader)>,
+    noise_rng: ChaCha8Rng,
+    frame: GrayFrame,
+    origin: Option<(f64, f64)>,
+}
+
+impl FrameRenderer {
+    /// A renderer for the runs of `experiment` on the workcell of `seed`
+    /// (the image noise is seeded from it).
+    pub fn new(experiment: &PickExperiment, seed: u64) -> Self {
+        Self {
+            settings: experiment.image,
+            renderer: None,
+            headers: None,
+            noise_rng: ChaCha8Rng::seed_from_u64(seed ^ 0x7ec0_4d1e),
+            frame: GrayFrame {
+                width: 0,
+                height: 0,
+                pixels: Vec::new(),
+            },
+            origin: None,
         }
-        triggers += 1;
-        if stride > 1 && !(triggers - 1).is_multiple_of(stride) {
-            return Ok(());
-        }
-        if frames >= max_frames {
-            return Err(EnoughFrames.into());
-        }
+    }
+
+    /// Frame `trigger_id`, exposed now (centred on the world's instant).
+    pub fn render(&mut self, world: &World, trigger_id: u64) -> Result<SimulatedFrame<'_>> {
+        let settings = self.settings;
+        let exposure_s = settings.exposure_ms / 1000.0;
         let camera = world.camera().camera();
-        let renderer = Renderer::ready(&mut renderer, camera, &settings)?;
+        let renderer = Renderer::ready(&mut self.renderer, camera, &settings)?;
         let scene = build_scene(
             world.workcell(),
             &FrameState::from_world(world, exposure_s),
@@ -200,15 +202,14 @@ pub fn simulate_pick(
         );
         renderer.render(&scene);
         let marks = mark_images(renderer, &scene, VIEW_MARGIN_PX);
-        renderer.expose(scene.time_s, false, &mut noise_rng, &mut frame);
+        renderer.expose(scene.time_s, false, &mut self.noise_rng, &mut self.frame);
 
         let counts_per_rev = f64::from(world.conveyor().counts_per_rev());
         let theta = quantise(
             world.conveyor().theta(scene.time_s),
             counts_per_rev / std::f64::consts::TAU,
         );
-        let (t0, theta0) = *origin.get_or_insert((scene.time_s, theta));
-        let trigger_id = triggers as u64 - 1;
+        let (t0, theta0) = *self.origin.get_or_insert((scene.time_s, theta));
         let row = FrameRow {
             line: 0,
             trigger_id,
@@ -217,8 +218,9 @@ pub fn simulate_pick(
             image: String::new(),
             effector_base_m: effector_base_from_encoders(world),
         };
-        let (header, log_header) =
-            headers.get_or_insert_with(|| (header_of(world, renderer), world.workcell().header()));
+        let (header, log_header) = self
+            .headers
+            .get_or_insert_with(|| (header_of(world, renderer), world.workcell().header()));
 
         // The truth and the ideal labelled frame.
         let pinhole = &renderer.camera().pinhole;
@@ -277,17 +279,47 @@ pub fn simulate_pick(
                 base_m: [*pa, *pb],
             });
         }
-        sink(SimulatedFrame {
+        Ok(SimulatedFrame {
             header,
             log_header,
             row,
-            pixels: &frame.pixels,
+            pixels: &self.frame.pixels,
             truth: TrueFrame {
                 trigger_id,
                 marks: true_marks,
             },
             ideal,
-        })?;
+        })
+    }
+}
+
+/// Runs the pick of `experiment` on the workcell of `seed` and hands each
+/// rendered frame (at most `max_frames`, every `stride`-th trigger) to
+/// `sink`, in order: what [`record_pick`] writes and what
+/// `host-sim vision-campaign` feeds to the front end without a disk.
+pub fn simulate_pick(
+    experiment: &PickExperiment,
+    seed: u64,
+    max_frames: usize,
+    stride: usize,
+    sink: &mut dyn FnMut(SimulatedFrame<'_>) -> Result<()>,
+) -> Result<RecordedRun> {
+    let mut renderer = FrameRenderer::new(experiment, seed);
+    let mut triggers = 0usize;
+    let mut frames = 0usize;
+    let mut link = FramedLink::new(InProcessLink::new());
+    let mut observe = |world: &World, command: &shared::protocol::ActuatorCommand| -> Result<()> {
+        if command.camera_trigger.is_none() {
+            return Ok(());
+        }
+        triggers += 1;
+        if stride > 1 && !(triggers - 1).is_multiple_of(stride) {
+            return Ok(());
+        }
+        if frames >= max_frames {
+            return Err(EnoughFrames.into());
+        }
+        sink(renderer.render(world, triggers as u64 - 1)?)?;
         frames += 1;
         Ok(())
     };

@@ -12,6 +12,7 @@ use crate::pick::montecarlo::{
     limit_table, montecarlo_table, run_trials_recording, write_trials_csv, TrialLogs,
     TrialRecording,
 };
+use crate::scenario::pick::CameraSource;
 
 /// Options of `host-sim montecarlo`.
 #[derive(clap::Args, Debug, Clone)]
@@ -46,10 +47,18 @@ pub struct Args {
     /// the final estimate against it.
     #[arg(long)]
     pub ml_limit: bool,
+    /// What the controller's camera frames are made from: `images` renders
+    /// each frame and labels it with the project's detector and identifier
+    /// (the scenario's `camera.source` when absent).
+    #[arg(long, value_enum)]
+    pub camera_source: Option<CameraSource>,
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let experiment = super::load_experiment(args.scenario.as_deref(), &args.experiment)?;
+    let mut experiment = super::load_experiment(args.scenario.as_deref(), &args.experiment)?;
+    if let Some(source) = args.camera_source {
+        experiment.camera.source = source;
+    }
     let (pool, progress) = super::campaign_pool(args.threads, args.trials, "picks")?;
     let started = std::time::Instant::now();
     if let Some(trial) = args.log_trials.iter().find(|&&k| k >= args.trials) {

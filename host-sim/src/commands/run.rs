@@ -18,7 +18,7 @@ use crate::pick::own_log::{
 use crate::pick::record::PickRun;
 use crate::pick::report::{link_line, results_table, summary_line};
 use crate::pick::runner::run_pick;
-use crate::scenario::pick::{PickExperiment, PickScenarioFile};
+use crate::scenario::pick::{CameraSource, PickExperiment, PickScenarioFile};
 
 /// Options of the default run.
 #[derive(clap::Args, Debug, Clone)]
@@ -60,6 +60,11 @@ pub struct Args {
     /// DIR/<experiment>/ (in-process links only).
     #[arg(long)]
     pub log_dir: Option<PathBuf>,
+    /// What the controller's camera frames are made from: `images` renders
+    /// each frame and labels it with the project's detector and identifier
+    /// (the scenario's `camera.source` when absent).
+    #[arg(long, value_enum)]
+    pub camera_source: Option<CameraSource>,
 }
 
 fn parse_rate(text: &str) -> Result<f64, String> {
@@ -84,6 +89,7 @@ impl Default for Args {
             link_noise_seed: 1,
             print_scenario: false,
             log_dir: None,
+            camera_source: None,
         }
     }
 }
@@ -209,7 +215,12 @@ pub fn run(args: &Args) -> Result<()> {
         Some(path) => PickScenarioFile::from_path(path)?,
         None => PickScenarioFile::embedded_default()?,
     };
-    let experiments = selected(&file, &args.experiment)?;
+    let mut experiments = selected(&file, &args.experiment)?;
+    if let Some(source) = args.camera_source {
+        for experiment in &mut experiments {
+            experiment.camera.source = source;
+        }
+    }
     println!(
         "Simulated workcell (seed {}): PUMA 560, 0.9 m disc, one 256x256 camera; camera, disc and robot base poses unknown to the controller.\n\
          Controller: {} link; the world runs in lock step at the controller's rate.\n",

@@ -56,6 +56,10 @@ pub fn identify_settings(header: &RecordingHeader) -> Result<IdentifySettings> {
         ("marks.disc_center", header.disc_center.polarity),
         ("marks.reference", header.reference.polarity),
         ("marks.part_feature", header.part_feature.polarity),
+        (
+            "marks.part_key",
+            header.part_key.map_or(Polarity::Bright, |m| m.polarity),
+        ),
     ]
     .into_iter()
     .chain(
@@ -92,6 +96,7 @@ pub fn identify_settings(header: &RecordingHeader) -> Result<IdentifySettings> {
             disc_centre_m: header.disc_center.diameter_m,
             reference_m: header.reference.diameter_m,
             part_feature_m: header.part_feature.diameter_m,
+            part_key_m: header.part_key.map(|m| m.diameter_m),
             effector_m: [header.effector[0].diameter_m, header.effector[1].diameter_m],
         },
         gate_px: TRACK_GATE_PX,

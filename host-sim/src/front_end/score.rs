@@ -113,6 +113,23 @@ impl<'a> Judge<'a> {
         Self { by_id, feature_map }
     }
 
+    /// A judge for a front end whose part features follow the part's own
+    /// order (feature `i` must be the part's feature `i`), as a controller
+    /// that grasps by that order needs.
+    pub fn in_fixed_order(truth: &'a [TrueFrame]) -> Self {
+        let by_id: BTreeMap<u64, &TrueFrame> = truth.iter().map(|f| (f.trigger_id, f)).collect();
+        let features = truth
+            .iter()
+            .flat_map(|f| f.marks.iter())
+            .filter(|m| m.kind == "part_feature")
+            .map(|m| (m.index, m.index))
+            .collect();
+        Self {
+            by_id,
+            feature_map: features,
+        }
+    }
+
     /// The truth of frame `trigger_id`, if it has one.
     pub fn frame(&self, trigger_id: u64) -> Option<&'a TrueFrame> {
         self.by_id.get(&trigger_id).copied()

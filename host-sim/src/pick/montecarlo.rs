@@ -67,6 +67,12 @@ pub struct TrialSummary {
     /// a wrong estimate).
     pub frames_folded: u32,
     pub folds_discarded: u32,
+    /// With `camera.source = "images"` (0 otherwise): frames the in-loop
+    /// front end labelled, the labels it sent and those that named the
+    /// wrong mark (scored against the truth).
+    pub vision_frames: u64,
+    pub vision_labels: u64,
+    pub vision_wrong_labels: u64,
 }
 
 fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
@@ -113,6 +119,9 @@ fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
         estimates: run.calibrations.len(),
         frames_folded: last.map_or(0, |report| report.frames_folded),
         folds_discarded: last.map_or(0, |report| u32::from(report.folds_discarded)),
+        vision_frames: run.vision.map_or(0, |v| v.frames),
+        vision_labels: run.vision.map_or(0, |v| v.labels),
+        vision_wrong_labels: run.vision.map_or(0, |v| v.wrong_labels),
     }
 }
 
@@ -314,6 +323,20 @@ pub fn montecarlo_table(experiment: &str, summaries: &[TrialSummary]) -> String 
         }
     }
     outcomes.sort_by_key(|(_, count)| std::cmp::Reverse(*count));
+    let vision_frames: u64 = summaries.iter().map(|s| s.vision_frames).sum();
+    if vision_frames > 0 {
+        let labels: u64 = summaries.iter().map(|s| s.vision_labels).sum();
+        let wrong: u64 = summaries.iter().map(|s| s.vision_wrong_labels).sum();
+        let trials = summaries
+            .iter()
+            .filter(|s| s.vision_wrong_labels > 0)
+            .count();
+        let _ = writeln!(
+            out,
+            "Through images: {vision_frames} frames labelled in the loop, {labels} labels sent, \
+             {wrong} wrong (in {trials} trials).\n"
+        );
+    }
     let _ = writeln!(out, "| outcome | trials |\n|---|---|");
     for (name, count) in &outcomes {
         let _ = writeln!(out, "| {name} | {count} |");
@@ -413,12 +436,12 @@ pub fn azimuth_table(summaries: &[TrialSummary]) -> String {
 /// Writes `trials.csv`: one line per trial.
 pub fn write_trials_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
     let mut text = String::from(
-        "trial,seed,result,success,estimate_error_x_mm,estimate_error_y_mm,estimate_error_z_mm,estimate_error_mm,estimate_yaw_error_deg,grasp_error_mm,grasp_yaw_error_deg,grasp_relative_speed_mm_s,calibrated_after_s,duration_s,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm,disc_azimuth_deg,disc_distance_m,disc_below_shoulder_m,final_part_in_base_mm,limit_part_in_base_mm,final_part_yaw_deg,limit_part_yaw_deg,sigma_grasp_horizontal_mm,sigma_grasp_vertical_mm,sigma_grasp_yaw_deg,estimates,frames_folded,folds_discarded\n",
+        "trial,seed,result,success,estimate_error_x_mm,estimate_error_y_mm,estimate_error_z_mm,estimate_error_mm,estimate_yaw_error_deg,grasp_error_mm,grasp_yaw_error_deg,grasp_relative_speed_mm_s,calibrated_after_s,duration_s,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm,disc_azimuth_deg,disc_distance_m,disc_below_shoulder_m,final_part_in_base_mm,limit_part_in_base_mm,final_part_yaw_deg,limit_part_yaw_deg,sigma_grasp_horizontal_mm,sigma_grasp_vertical_mm,sigma_grasp_yaw_deg,estimates,frames_folded,folds_discarded,vision_frames,vision_labels,vision_wrong_labels\n",
     );
     for s in summaries {
         let _ = writeln!(
             text,
-            "{},{},\"{}\",{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.4},{:.4},{:.2},{:.2},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},{},{}",
+            "{},{},\"{}\",{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.4},{:.4},{:.2},{:.2},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},{},{},{},{},{}",
             s.trial,
             s.seed,
             s.result.replace('"', "'"),
@@ -448,7 +471,10 @@ pub fn write_trials_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
             s.sigma_grasp_yaw_deg,
             s.estimates,
             s.frames_folded,
-            s.folds_discarded
+            s.folds_discarded,
+            s.vision_frames,
+            s.vision_labels,
+            s.vision_wrong_labels
         );
     }
     fs::write(path, text).with_context(|| format!("writing {}", path.display()))

@@ -150,6 +150,10 @@ pub struct PickRun {
     /// The worst value of every safety invariant over the run.
     #[serde(default)]
     pub safety: SafetyWorst,
+    /// With `camera.source = "images"`: the in-loop front end's labels,
+    /// scored against the truth.
+    #[serde(default)]
+    pub vision: Option<crate::world::image_vision::ImageVisionStats>,
 }
 
 impl PickRun {
@@ -178,6 +182,7 @@ impl PickRun {
             end_joint_speed_rad_s: f64::NAN,
             link: LinkRecord::default(),
             safety: SafetyWorst::default(),
+            vision: None,
         }
     }
 }

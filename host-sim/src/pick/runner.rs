@@ -477,6 +477,7 @@ pub fn run_pick_observed<L: ByteLink>(
         safety,
         end_joint_speed_rad_s,
         link: tally,
+        vision: world.image_vision_stats(),
     })
 }
 

@@ -156,5 +156,6 @@ pub fn synthetic_run(experiment: &str, records: usize) -> PickRun {
         end_joint_speed_rad_s: 0.0,
         link: Default::default(),
         safety: Default::default(),
+        vision: None,
     }
 }

@@ -29,6 +29,7 @@ pub mod effector;
 pub mod generator;
 pub mod gripper;
 pub mod homing_sensors;
+pub mod image_vision;
 pub mod plant;
 pub mod render;
 pub mod serve;

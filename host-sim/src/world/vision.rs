@@ -104,6 +104,26 @@ impl CameraSim {
             return;
         }
         let frame = self.render(trigger_id, time_s, scene);
+        self.send(time_s, frame);
+    }
+
+    /// Sends a frame exposed at `time_s` that the vision computer labelled
+    /// from its image (`camera.source = "images"`): it arrives after the
+    /// latency like the others, and not at all after a blackout.
+    pub fn deliver(&mut self, time_s: f64, frame: CameraFeatureFrame) {
+        if self
+            .settings
+            .faults
+            .blackout_after_s
+            .is_some_and(|after| time_s >= after)
+        {
+            return;
+        }
+        self.stats.frames += 1;
+        self.send(time_s, frame);
+    }
+
+    fn send(&mut self, time_s: f64, frame: CameraFeatureFrame) {
         let jitter_ms = self.settings.latency_jitter_ms * (2.0 * self.rng.random::<f64>() - 1.0);
         let arrival_s = time_s + (self.settings.latency_ms + jitter_ms) / 1000.0;
         self.in_flight.push((arrival_s, frame));

@@ -19,7 +19,7 @@ pub const TOOL_LENGTH_M: f64 = 0.12;
 /// so a mark on x sits under the forearm in the overhead camera's view (on
 /// x, mark 0 was hidden in 88 % of the frames it was in view; across, both
 /// clear it).
-pub const EFFECTOR_MARKS_FLANGE_M: [[f64; 3]; 2] = [[0.0, 0.05, 0.03], [0.0, -0.05, 0.03]];
+pub const EFFECTOR_MARKS_FLANGE_M: [[f64; 3]; 2] = [[0.0, 0.08, 0.03], [0.0, -0.08, 0.03]];
 
 /// The grasp point in the base frame for a flange pose.
 pub fn tool_point_base<T: RealField + Copy>(base_from_flange: &Isometry3<T>) -> Vector3<T> {

@@ -59,6 +59,11 @@ pub struct ImageSettings {
     pub reference_mark_radius_m: f64,
     /// Radius of each feature mark on the part, m.
     pub feature_mark_radius_m: f64,
+    /// Radius of part feature 0's mark, m: larger than the others, so that
+    /// the features' order (feature 0, then counter-clockwise seen from
+    /// above) follows from the image alone (0: like the others, and the
+    /// order is the front end's own).
+    pub key_feature_mark_radius_m: f64,
     /// Radii of the gripper's two marks (`EFFECTOR_MARKS_FLANGE_M` order),
     /// m: unlike, so that which is which follows from their sizes (their
     /// images' light differs by the square of the ratio at any height).
@@ -99,6 +104,7 @@ impl Default for ImageSettings {
             centre_mark_radius_m: 0.012,
             reference_mark_radius_m: 0.012,
             feature_mark_radius_m: 0.008,
+            key_feature_mark_radius_m: 0.0105,
             effector_mark_radii_m: [0.016, 0.01],
             distractors: 0,
             distractor_radii_m: [0.005, 0.02],
@@ -171,6 +177,11 @@ impl ImageSettings {
             ("read_noise_grey", self.read_noise_grey, 50.0),
             ("rim_width_m", self.rim_width_m, 0.1),
             ("part_margin_m", self.part_margin_m, 0.1),
+            (
+                "key_feature_mark_radius_m",
+                self.key_feature_mark_radius_m,
+                0.05,
+            ),
         ];
         for (field, value, max) in non_negative {
             if !(value.is_finite() && (0.0..=max).contains(&value)) {

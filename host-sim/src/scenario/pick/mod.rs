@@ -19,9 +19,9 @@ mod validate;
 pub use image::ImageSettings;
 
 pub use settings::{
-    CameraBump, CameraFaults, CameraSettings, CellSettings, ConveyorSettings, DriveSettings,
-    FaultWindow, GripperSettings, LayoutKind, MissedCounts, PartSettings, RobotSettings,
-    SpeedChange, StopSettings, WorldFaults,
+    CameraBump, CameraFaults, CameraSettings, CameraSource, CellSettings, ConveyorSettings,
+    DriveSettings, FaultWindow, GripperSettings, LayoutKind, MissedCounts, PartSettings,
+    RobotSettings, SpeedChange, StopSettings, WorldFaults,
 };
 
 /// The embedded default scenario file (`host-sim scenarios/default.toml`).

@@ -198,6 +198,24 @@ pub struct CameraSettings {
     /// Injected failures (none by default).
     #[serde(default)]
     pub faults: CameraFaults,
+    /// What the controller's frames are made from (the marks' projections
+    /// with noise unless set).
+    #[serde(default)]
+    pub source: CameraSource,
+}
+
+/// Where the labelled points the controller receives come from.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum CameraSource {
+    /// The marks' true projections with Gaussian noise, group dropouts and
+    /// outliers (`pixel_sigma_px`, `dropout_probability`, `outlier_probability`).
+    #[default]
+    Points,
+    /// Each frame rendered as an image (the `image` settings) and labelled
+    /// by the project's detector and identifier; the point-noise settings
+    /// are not used.
+    Images,
 }
 
 /// Camera failures to inject, for testing the controller's fallbacks.

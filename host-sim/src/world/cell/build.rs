@@ -18,7 +18,7 @@ use super::{
     mean, PartState, World, DROP_OFF_CLEARANCE_M, MAX_LAYOUT_DRAWS, STOP_REACH_M,
     STOP_SEARCH_STEP_S, TOOL_PAYLOAD_COM_FLANGE_M,
 };
-use crate::scenario::pick::{LayoutKind, PickExperiment};
+use crate::scenario::pick::{CameraSource, LayoutKind, PickExperiment};
 use crate::scenario::recording::{DiscPlacement, FeatureHeights, Scenario};
 use crate::world::conveyor::{Conveyor, ConveyorProfile, ConveyorStop, MissedBurst, SpeedRamp};
 use crate::world::dimensions::DISC_RADIUS_M;
@@ -26,6 +26,7 @@ use crate::world::drive::PlantDrives;
 use crate::world::generator::random_workcell;
 use crate::world::gripper::GraspTolerance;
 use crate::world::homing_sensors::HomingSensors;
+use crate::world::image_vision::ImageVision;
 use crate::world::plant::{JointEncoders, RobotPlant};
 use crate::world::serve::{check_serve, grasp_reachable};
 use crate::world::vision::CameraSim;
@@ -322,6 +323,8 @@ impl World {
             homing_sensors,
             conveyor,
             camera,
+            image_vision: (experiment.camera.source == CameraSource::Images)
+                .then(|| ImageVision::new(experiment, seed)),
             ticks: 0,
             sensor_seq: 0,
             part: PartState::OnDisc,

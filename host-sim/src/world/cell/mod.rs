@@ -27,6 +27,7 @@ use super::conveyor::Conveyor;
 use super::dimensions::DISC_RADIUS_M;
 use super::gripper::GraspTolerance;
 use super::homing_sensors::HomingSensors;
+use super::image_vision::{ImageVision, ImageVisionStats};
 use super::plant::{JointEncoders, RobotPlant};
 use super::vision::CameraSim;
 use super::workcell::Workcell;
@@ -116,6 +117,9 @@ pub struct World {
     homing_sensors: HomingSensors,
     conveyor: Conveyor,
     camera: CameraSim,
+    /// The vision computer on rendered images (`camera.source = "images"`);
+    /// without it the camera delivers the marks' projections with noise.
+    image_vision: Option<ImageVision>,
     tolerance: GraspTolerance,
     control_period_s: f64,
     ticks: u64,
@@ -215,6 +219,11 @@ impl World {
 
     pub fn camera(&self) -> &CameraSim {
         &self.camera
+    }
+
+    /// The in-loop vision computer's scored labels (`None` on ideal points).
+    pub fn image_vision_stats(&self) -> Option<ImageVisionStats> {
+        self.image_vision.as_ref().map(ImageVision::stats)
     }
 
     /// The homing sensors (their drawn counter offsets: truth, for scoring).

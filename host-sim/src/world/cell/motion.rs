@@ -84,9 +84,19 @@ impl World {
         self.unattended_ticks = 0;
         self.bump_camera_if_due();
         if let Some(trigger_id) = command.camera_trigger {
-            let scene = self.scene_marks();
             let now = self.time_s();
-            self.camera.expose(trigger_id, now, &scene);
+            match self.image_vision.take() {
+                Some(mut vision) => {
+                    let seen = vision.see(self, trigger_id);
+                    self.image_vision = Some(vision);
+                    let frame = seen.with_context(|| format!("camera frame at t = {now:.3} s"))?;
+                    self.camera.deliver(now, frame);
+                }
+                None => {
+                    let scene = self.scene_marks();
+                    self.camera.expose(trigger_id, now, &scene);
+                }
+            }
         }
         match (command.gripper, self.gripper_closed) {
             (GripperCommand::Close, false) => {

@@ -371,7 +371,11 @@ pub fn build_scene(workcell: &Workcell, frame: &FrameState, settings: &ImageSett
                 up_mid,
                 motion[END].rotation * up_mid,
             ],
-            radius_m: settings.feature_mark_radius_m,
+            radius_m: if i == 0 && settings.key_feature_mark_radius_m > 0.0 {
+                settings.key_feature_mark_radius_m
+            } else {
+                settings.feature_mark_radius_m
+            },
         });
     }
     let part = part_outline(&features_mid, &up_mid, settings.part_margin_m).map(|top_mid| {

@@ -125,6 +125,12 @@ pub struct MarkDiameters {
     pub reference_m: f64,
     /// Each part feature's mark.
     pub part_feature_m: f64,
+    /// Part feature 0's mark when it is larger than the others (the key):
+    /// the features are then numbered from it, counter-clockwise seen from
+    /// the camera, as the part's drawing numbers them. Without a key the
+    /// order is the front end's own (by angle about the disc centre from the
+    /// reference), fixed for the run but not the part's.
+    pub part_key_m: Option<f64>,
     /// The two effector marks.
     pub effector_m: [f64; 2],
 }
@@ -740,6 +746,61 @@ impl Identifier {
         }
     }
 
+    /// Orders the settled feature `candidates` (track index, rotating-frame
+    /// position) as the part's drawing numbers them: the key (the brightest,
+    /// clearly brighter than every other: its light grows with the square of
+    /// its diameter), then the rest counter-clockwise about their centroid.
+    /// `false` when no candidate stands out as the key: the order waits.
+    fn order_from_key(
+        &self,
+        candidates: &mut Vec<(usize, [f64; 2]), MAX_TRACKS>,
+        key_m: f64,
+    ) -> bool {
+        let flux = |i: usize| self.tracks.get(i).map_or(0.0, |f| f.track.mean_flux());
+        let plain_m = self.settings.diameters.part_feature_m;
+        // Halfway (geometrically) between like marks' light ratio (1) and
+        // the key's, (key / plain)^2.
+        let needed = (key_m / plain_m).max(1.0);
+        let mut brightest: Option<(usize, f64)> = None;
+        let mut second = 0.0_f64;
+        for (k, (i, _)) in candidates.iter().enumerate() {
+            let light = flux(*i);
+            match brightest {
+                Some((_, best)) if light <= best => second = second.max(light),
+                Some((_, best)) => {
+                    second = second.max(best);
+                    brightest = Some((k, light));
+                }
+                None => brightest = Some((k, light)),
+            }
+        }
+        let Some((key_at, key_light)) = brightest else {
+            return false;
+        };
+        if !(key_light > 0.0 && key_light >= needed * second) {
+            return false;
+        }
+        let count = candidates.len().max(1) as f64;
+        let (sx, sy) = candidates
+            .iter()
+            .fold((0.0, 0.0), |(sx, sy), (_, p)| (sx + p[0], sy + p[1]));
+        let centroid = [sx / count, sy / count];
+        let Some(key_p) = candidates.get(key_at).map(|c| c.1) else {
+            return false;
+        };
+        let key_angle = libm::atan2(key_p[1] - centroid[1], key_p[0] - centroid[0]);
+        let turn = |p: &[f64; 2]| {
+            let a = libm::atan2(p[1] - centroid[1], p[0] - centroid[0]) - key_angle;
+            if a < 0.0 {
+                a + core::f64::consts::TAU
+            } else {
+                a
+            }
+        };
+        candidates.sort_unstable_by(|x, y| turn(&x.1).total_cmp(&turn(&y.1)));
+        true
+    }
+
     fn find_features(&mut self, theta: f64) {
         let Some(disc) = self.disc else {
             return;
@@ -759,11 +820,12 @@ impl Identifier {
             if f.label.is_some() || f.blob.is_none() || !Self::turning(f) {
                 continue;
             }
-            if !Self::in_band(
-                disc.diameter_m(f.track.mean_area_px()),
-                expected,
-                SIZE_TOLERANCE,
-            ) {
+            let key = self.settings.diameters.part_key_m;
+            let sized = |diameter_m: f64, tolerance: f64| {
+                Self::in_band(diameter_m, expected, tolerance)
+                    || key.is_some_and(|key| Self::in_band(diameter_m, key, tolerance))
+            };
+            if !sized(disc.diameter_m(f.track.mean_area_px()), SIZE_TOLERANCE) {
                 continue;
             }
             // The light it sends against the reference mark's: blur spreads
@@ -771,7 +833,7 @@ impl Identifier {
             if let Some(reference_flux) = reference_flux {
                 let d = self.settings.diameters.reference_m
                     * libm::sqrt((f.track.mean_flux() / reference_flux).max(0.0));
-                if !Self::in_band(d, expected, FLUX_SIZE_TOLERANCE) {
+                if !sized(d, FLUX_SIZE_TOLERANCE) {
                     continue;
                 }
             }
@@ -797,10 +859,17 @@ impl Identifier {
             if candidates.len() != count || !unlabelled_features || !settled {
                 return;
             }
-            // A fixed order: by angle about the disc centre, from the reference.
-            candidates.sort_unstable_by(|x, y| {
-                libm::atan2(x.1[1], x.1[0]).total_cmp(&libm::atan2(y.1[1], y.1[0]))
-            });
+            match self.settings.diameters.part_key_m {
+                Some(key_m) => {
+                    if !self.order_from_key(&mut candidates, key_m) {
+                        return;
+                    }
+                }
+                // A fixed order: by angle about the disc centre, from the reference.
+                None => candidates.sort_unstable_by(|x, y| {
+                    libm::atan2(x.1[1], x.1[0]).total_cmp(&libm::atan2(y.1[1], y.1[0]))
+                }),
+            }
             for (k, (i, p)) in candidates.iter().enumerate() {
                 let _ = self.features_rotating.push(*p);
                 if let Some(f) = self.tracks.get_mut(*i) {

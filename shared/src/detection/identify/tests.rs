@@ -86,6 +86,7 @@ fn nothing_is_labelled_from_nothing() {
             disc_centre_m: 0.024,
             reference_m: 0.024,
             part_feature_m: 0.016,
+            part_key_m: None,
             effector_m: [0.02, 0.02],
         },
         gate_px: 2.0,

@@ -1,0 +1,126 @@
+//! The vision computer on images (`camera.source = "images"`): at each
+//! trigger the world renders the camera's 8-bit frame (lens, light, noise,
+//! blur, the arm hiding what it stands in front of), and the project's own
+//! detector and identifier (`shared::detection`, through
+//! [`crate::front_end::FrontEnd`]) turn it into the labelled points the
+//! controller receives, as a separate vision computer would. The identifier
+//! gets only what such a computer is given: the image, the conveyor angle
+//! latched at the trigger and the gripper marks' base-frame centres from the
+//! joint encoders.
+//!
+//! The truth of each frame (where every mark really is) is kept beside it
+//! only to score the labels: [`ImageVisionStats`].
+
+use anyhow::{Context, Result};
+use serde::{Deserialize, Serialize};
+use shared::detection::identify::MarkLabel;
+use shared::protocol::{CameraFeatureFrame, LabeledPoint, PointLabel};
+
+use super::World;
+use crate::camera_recording::simulate::FrameRenderer;
+use crate::front_end::score::{Judge, Verdict};
+use crate::front_end::FrontEnd;
+use crate::scenario::pick::PickExperiment;
+
+/// What the front end labelled over a run, scored against the truth.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ImageVisionStats {
+    /// Frames rendered and labelled.
+    pub frames: u64,
+    /// Frames whose detections the detector refused (too many blobs).
+    pub refused_frames: u64,
+    /// Labels sent to the controller.
+    pub labels: u64,
+    /// Labels naming another mark than the one under them (part features by
+    /// the part's own order: a feature given another's index is wrong).
+    pub wrong_labels: u64,
+    /// Labels on the right mark, their point displaced (a mark partly hidden).
+    pub off_labels: u64,
+}
+
+/// The in-loop vision computer of one world.
+pub struct ImageVision {
+    frames: FrameRenderer,
+    front_end: Option<FrontEnd>,
+    stats: ImageVisionStats,
+}
+
+impl std::fmt::Debug for ImageVision {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ImageVision")
+            .field("stats", &self.stats)
+            .finish_non_exhaustive()
+    }
+}
+
+fn point_label(label: MarkLabel) -> PointLabel {
+    match label {
+        MarkLabel::DiscCentre => PointLabel::DiscCenter,
+        MarkLabel::Reference => PointLabel::Reference,
+        MarkLabel::PartFeature(i) => PointLabel::Part(i),
+        MarkLabel::Effector(i) => PointLabel::Effector(i),
+    }
+}
+
+impl ImageVision {
+    /// The vision computer of the world of `experiment` drawn from `seed`.
+    pub fn new(experiment: &PickExperiment, seed: u64) -> Self {
+        Self {
+            frames: FrameRenderer::new(experiment, seed),
+            front_end: None,
+            stats: ImageVisionStats::default(),
+        }
+    }
+
+    pub fn stats(&self) -> ImageVisionStats {
+        self.stats
+    }
+
+    /// Frame `trigger_id` of `world` now: rendered, detected, labelled; the
+    /// labelled points inside the image, undistorted (the controller's camera
+    /// is a pinhole).
+    pub fn see(&mut self, world: &World, trigger_id: u32) -> Result<CameraFeatureFrame> {
+        let frame = self
+            .frames
+            .render(world, u64::from(trigger_id))
+            .with_context(|| format!("rendering frame {trigger_id}"))?;
+        let front_end = match self.front_end.as_mut() {
+            Some(front_end) => front_end,
+            None => self.front_end.insert(FrontEnd::new(frame.header)?),
+        };
+        let refused_before = front_end.run.refused_frames;
+        front_end.push(&frame.row, frame.pixels)?;
+        self.stats.frames += 1;
+        self.stats.refused_frames += (front_end.run.refused_frames - refused_before) as u64;
+        let mut out = CameraFeatureFrame {
+            trigger_id,
+            capture_time_us: (world.time_s().max(0.0) * 1e6).round() as u64,
+            points: heapless::Vec::new(),
+        };
+        let truth = std::slice::from_ref(&frame.truth);
+        let judge = Judge::in_fixed_order(truth);
+        let camera = &front_end.run.log.header.camera;
+        if let Some(labels) = front_end.run.frames.last() {
+            for point in labels.points.iter().filter(|p| camera.contains(p.pixel)) {
+                self.stats.labels += 1;
+                match judge.verdict(labels.trigger_id, point) {
+                    Some(Verdict::Wrong) => self.stats.wrong_labels += 1,
+                    Some(Verdict::Off) => self.stats.off_labels += 1,
+                    _ => {}
+                }
+                // More points than a frame carries cannot come from <= 8
+                // features; one that does not fit is left out.
+                let _ = out.points.push(LabeledPoint {
+                    label: point_label(point.label),
+                    u_px: point.pixel[0] as f32,
+                    v_px: point.pixel[1] as f32,
+                });
+            }
+        }
+        // The run's own log and labels are not kept: memory stays flat
+        // however long the pick runs.
+        front_end.run.frames.clear();
+        front_end.run.log.frames.clear();
+        Ok(out)
+    }
+}
