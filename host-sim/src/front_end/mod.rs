@@ -233,7 +233,7 @@ impl FrontEnd {
     }
 
     /// Why the gripper's marks went unlabelled once the projection was known.
-    pub fn effector_refusals(&self) -> [[u32; 6]; 2] {
+    pub fn effector_refusals(&self) -> [[u32; 7]; 2] {
         self.identifier.effector_refusals()
     }
 

@@ -104,7 +104,7 @@ impl Default for ImageSettings {
             centre_mark_radius_m: 0.012,
             reference_mark_radius_m: 0.012,
             feature_mark_radius_m: 0.008,
-            key_feature_mark_radius_m: 0.0105,
+            key_feature_mark_radius_m: 0.0095,
             effector_mark_radii_m: [0.016, 0.01],
             distractors: 0,
             distractor_radii_m: [0.005, 0.02],

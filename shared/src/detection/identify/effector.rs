@@ -151,8 +151,8 @@ pub struct EffectorMarks {
     previous_blob_px: [Option<PixelPoint>; 2],
     /// Why each mark went unlabelled in the projection's stage, by reason
     /// (diagnosis: none in gate, two in gate, not free, crowded, not seen
-    /// there before, light).
-    pub refusals: [[u32; 6]; 2],
+    /// there before, light, outside where the projection was fitted).
+    pub refusals: [[u32; 7]; 2],
     /// The last pair's blobs (mark 0's, mark 1's) and their lights against
     /// the yardstick (diagnosis).
     pub last_pair: Option<([PixelPoint; 2], [f64; 2])>,
@@ -186,7 +186,7 @@ impl EffectorMarks {
             light: [None; 2],
             previous_px: [None; 2],
             previous_blob_px: [None; 2],
-            refusals: [[0; 6]; 2],
+            refusals: [[0; 7]; 2],
             last_pair: None,
         }
     }
@@ -231,11 +231,15 @@ impl EffectorMarks {
             self.previous_blob_px = [None; 2];
             return [None, None];
         }
+        let covered = base_m.iter().any(|b| self.projection.covers(*b));
         if self.projection.len() >= MIN_PROJECTION_POINTS
             && self.projection.trusted(PROJECTION_RMS_PX)
+            && (covered || self.signature.is_none())
         {
             self.by_projection(blobs, base_m)
         } else {
+            // Where the projection was not fitted, pairs that agree with
+            // the confirmed signature extend it.
             self.previous_px = [None; 2];
             self.previous_blob_px = [None; 2];
             self.by_pair(blobs, base_m, yardstick.unwrap_or(f64::NAN))
@@ -394,11 +398,16 @@ impl EffectorMarks {
                 .enumerate()
                 .filter_map(|(i, b)| b.map(|b| (i, b)))
                 .filter(|(_, b)| distance(b.pixel, *p) <= GATE_PX);
-            let refuse = |r: &mut [[u32; 6]; 2], reason: usize| {
+            let refuse = |r: &mut [[u32; 7]; 2], reason: usize| {
                 if let Some(c) = r.get_mut(k).and_then(|r| r.get_mut(reason)) {
                     *c += 1;
                 }
             };
+            // Only where the projection was fitted (it extrapolates badly).
+            if !base_m.get(k).is_some_and(|b| self.projection.covers(*b)) {
+                refuse(&mut self.refusals, 6);
+                continue;
+            }
             let (first, second) = (in_gate.next(), in_gate.next());
             let Some((i, blob)) = first else {
                 refuse(&mut self.refusals, 0);

@@ -103,6 +103,28 @@ const CENTRE_GATE_MIN_PX: f64 = 3.0;
 /// A feature takes a stored position's label within this share of the
 /// stored features' least spacing.
 const FEATURE_GATE_SHARE: f64 = 0.25;
+/// The reference hypothesis asks that the candidate's light over the
+/// disc-centre mark's, against the marks' diameters squared, lie nearer
+/// the reference's (1) than a part feature's (`(d_f / d_r)^2`), and below
+/// this: measured on the rendered picks of seed 2 (6 distractors, tracks
+/// followed 6 frames or more), the reference's light over the centre's
+/// spans 0.71 to 1.41 (the light falls off across the image), a
+/// feature's 0.32 to 0.55 (nominal 0.44), a large distractor's 2.8.
+const REFERENCE_LIGHT_MAX: f64 = 1.8;
+/// No other turning track within this of the reference, m on the disc,
+/// sends light within [`NEIGHBOUR_LIGHT`] of its own: the part's features
+/// lie together and alike; the reference has no mark of its size beside it
+/// (a feature there sends less than half its light in the same light).
+const NEIGHBOUR_M: f64 = 0.15;
+const NEIGHBOUR_LIGHT: f64 = 1.5;
+/// The part's features are alike: a feature's light lies within this
+/// factor of the others' (the gripper's smaller mark, following the part
+/// before the grasp, turns with the disc too and is about a feature's size
+/// by the reference's light, but sends 1.5 to 1.8 times a feature's).
+const FEATURE_LIKE_LIGHT: f64 = 1.3;
+/// A feature's path turns about the disc's centre: its fit over at least
+/// this arc, rad, is centred within the centre's gate.
+const FEATURE_CENTRED_ARC_RAD: f64 = 0.6;
 /// Which mark a blob is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum MarkLabel {
@@ -266,7 +288,9 @@ pub struct Identifier {
     tracks: Vec<Followed, MAX_TRACKS>,
     disc: Option<DiscImage>,
     features_rotating: Vec<[f64; 2], MAX_PART_FEATURES>,
-    /// The disc centre's image once found (it does not move).
+    /// The disc centre's image once found (it does not move): the centre's
+    /// label is given only within [`OUTPUT_GATE_PX`] of it (a gripper mark
+    /// resting beside the hidden centre would otherwise be followed as it).
     centre_px: Option<PixelPoint>,
     effector: EffectorMarks,
     /// The reference mark's mean flux, the yardstick of the other marks' sizes.
@@ -314,7 +338,7 @@ impl Identifier {
 
     /// Why the gripper's marks went unlabelled once the projection was
     /// known, per mark (see [`EffectorMarks::refusals`]).
-    pub fn effector_refusals(&self) -> [[u32; 6]; 2] {
+    pub fn effector_refusals(&self) -> [[u32; 7]; 2] {
         self.effector.refusals
     }
 
@@ -426,10 +450,13 @@ impl Identifier {
     ) -> (Vec<bool, MAX_BLOBS>, Vec<bool, MAX_BLOBS>) {
         let gate = self.settings.gate_px;
         let mut disc_like: Vec<bool, MAX_TRACKS> = Vec::new();
+        let mut at_rest: Vec<bool, MAX_TRACKS> = Vec::new();
         for f in self.tracks.iter() {
             let _ = disc_like
                 .push(!f.on_arm && (f.label.is_some() || Self::turning(f) || self.still(f)));
+            let _ = at_rest.push(self.still(f) || f.label == Some(MarkLabel::DiscCentre));
         }
+        let centre_home = self.centre_px;
         let mut near_disc_mark: Vec<bool, MAX_BLOBS> = Vec::new();
         for _ in points {
             let _ = near_disc_mark.push(false);
@@ -453,9 +480,20 @@ impl Identifier {
                 let q = d.rotating(p1, theta1, l)?;
                 Some(d.pixel(q, theta, l))
             });
+            // A still mark does not move while unseen: its gate does not
+            // grow (a gripper mark resting beside the hidden disc centre
+            // is not taken for it); the centre is looked for where it is.
+            let resting = at_rest.get(t).copied().unwrap_or(false);
             let (predicted, reach) = match (first_seen, on_disc) {
                 (true, Some(p)) => (p, gate),
                 (true, None) => (p1, gate + first_gate * (theta - theta1).abs()),
+                (false, _) if resting => (
+                    match (followed.label, centre_home) {
+                        (Some(MarkLabel::DiscCentre), Some(home)) => home,
+                        _ => track.predict(theta, PREDICT_ARC_RAD, PREDICT_RMS_PX),
+                    },
+                    gate,
+                ),
                 (false, _) => (
                     track.predict(theta, PREDICT_ARC_RAD, PREDICT_RMS_PX),
                     gate * (1.0 + f64::from(track.misses.min(2))),
@@ -523,6 +561,13 @@ impl Identifier {
                     followed.track.update(theta, p, area, flux);
                     followed.blob = Some(i);
                     followed.sure = *innovation <= OUTPUT_GATE_PX;
+                    // The centre's label holds only at the centre's image.
+                    if followed.label == Some(MarkLabel::DiscCentre)
+                        && centre_home
+                            .is_some_and(|q| libm::hypot(p[0] - q[0], p[1] - q[1]) > OUTPUT_GATE_PX)
+                    {
+                        followed.label = None;
+                    }
                     // A disc label holds only while the track turns with the disc.
                     if matches!(
                         followed.label,
@@ -594,6 +639,63 @@ impl Identifier {
         measured >= expected / tolerance && measured <= expected * tolerance
     }
 
+    /// The light of `candidate_flux` against the disc-centre mark's
+    /// (`centre_flux`) is the reference mark's and not a part feature's:
+    /// the two marks lie on the disc under the same light, their light is
+    /// their area's (blur spreads a mark's image but keeps its light).
+    fn reference_light(&self, candidate_flux: f64, centre_flux: f64) -> bool {
+        let d = self.settings.diameters;
+        if centre_flux <= 0.0 || d.disc_centre_m <= 0.0 || d.reference_m <= 0.0 {
+            return false;
+        }
+        let expected = (d.reference_m / d.disc_centre_m) * (d.reference_m / d.disc_centre_m);
+        let ratio = candidate_flux / centre_flux / expected;
+        let feature = (d.part_feature_m / d.reference_m) * (d.part_feature_m / d.reference_m);
+        // Nearer the reference's light than a feature's (in ratio), and no brighter than a
+        // reference can be.
+        libm::fabs(libm::log(ratio)) < libm::fabs(libm::log(ratio / feature))
+            && ratio <= REFERENCE_LIGHT_MAX
+    }
+
+    /// Another turning track lies within [`NEIGHBOUR_M`] of `candidate`
+    /// (under the disc image `disc`) and sends about its light: the
+    /// candidate is one of several like marks, a part feature.
+    fn has_like_neighbour(&self, candidate: &Followed, disc: &DiscImage) -> bool {
+        let reach_px = NEIGHBOUR_M * disc.scale_px_per_m;
+        let p = candidate.track.latest.1;
+        self.tracks.iter().any(|other| {
+            !core::ptr::eq(other, candidate)
+                && other.track.misses == 0
+                && Self::turning(other)
+                && libm::hypot(
+                    other.track.latest.1[0] - p[0],
+                    other.track.latest.1[1] - p[1],
+                ) <= reach_px
+                && Self::in_band(
+                    other.track.mean_flux(),
+                    candidate.track.mean_flux(),
+                    NEIGHBOUR_LIGHT,
+                )
+        })
+    }
+
+    /// Forgets the disc stage (a reference found wrong): the disc's image,
+    /// the reference, the centre and the features start again.
+    fn reset_disc(&mut self) {
+        for f in self.tracks.iter_mut() {
+            if matches!(
+                f.label,
+                Some(MarkLabel::Reference | MarkLabel::DiscCentre | MarkLabel::PartFeature(_))
+            ) {
+                f.label = None;
+            }
+        }
+        self.disc = None;
+        self.features_rotating.clear();
+        self.centre_px = None;
+        self.reference_flux = None;
+    }
+
     fn find_reference(&mut self, theta: f64) {
         let d = self.settings.diameters;
         if let Some(reference) = self
@@ -601,7 +703,24 @@ impl Identifier {
             .iter()
             .find(|f| f.label == Some(MarkLabel::Reference))
         {
-            if let Some(disc) = self.disc_of(&reference.track) {
+            // Still the reference by its light against the centre's, and
+            // alone of its light: else the hypothesis was wrong.
+            let centre_flux = self
+                .tracks
+                .iter()
+                .find(|f| f.label == Some(MarkLabel::DiscCentre))
+                .map(|f| f.track.mean_flux());
+            let disc = self.disc_of(&reference.track);
+            let wrong = centre_flux
+                .is_some_and(|c| !self.reference_light(reference.track.mean_flux(), c))
+                || disc.is_some_and(|disc| {
+                    reference.track.misses == 0 && self.has_like_neighbour(reference, &disc)
+                });
+            if wrong {
+                self.reset_disc();
+                return;
+            }
+            if let Some(disc) = disc {
                 self.disc = Some(disc);
             }
             return;
@@ -643,6 +762,7 @@ impl Identifier {
                 .whole
                 .model(MEASURE_ARC_RAD)
                 .is_some_and(|m| m.rms_px <= 2.0 * disc_rms_px(m.radius_px()));
+            // ... whose light is the reference's against it.
             let centred = self.tracks.iter().any(|other| {
                 self.still(other)
                     && Self::in_band(
@@ -654,8 +774,9 @@ impl Identifier {
                         other.track.latest.1[0] - disc.centre_px[0],
                         other.track.latest.1[1] - disc.centre_px[1],
                     ) <= gate
+                    && self.reference_light(candidate.track.mean_flux(), other.track.mean_flux())
             });
-            if !whole_fits || !centred {
+            if !whole_fits || !centred || self.has_like_neighbour(candidate, &disc) {
                 continue;
             }
             let mut features = 0;
@@ -718,6 +839,24 @@ impl Identifier {
         if self.has_label(MarkLabel::DiscCentre) {
             return;
         }
+        // Once the centre's image is known, the centre is the one track
+        // seen there in this frame and the one before (its path may hold
+        // what stood there while the centre was hidden).
+        if let Some(home) = self.centre_px {
+            let at_home =
+                |p: PixelPoint| libm::hypot(p[0] - home[0], p[1] - home[1]) <= OUTPUT_GATE_PX;
+            let mut there = self.tracks.iter_mut().filter(|f| {
+                f.label.is_none()
+                    && !f.on_arm
+                    && f.track.misses == 0
+                    && at_home(f.track.latest.1)
+                    && f.track.previous.is_some_and(|(_, p)| at_home(p))
+            });
+            if let (Some(f), None) = (there.next(), there.next()) {
+                f.label = Some(MarkLabel::DiscCentre);
+            }
+            return;
+        }
         let gate = (CENTRE_GATE_SHARE * disc.radius_px).max(CENTRE_GATE_MIN_PX);
         let mut chosen = None;
         let mut count = 0;
@@ -742,48 +881,57 @@ impl Identifier {
         if count == 1 {
             if let Some(f) = chosen.and_then(|i| self.tracks.get_mut(i)) {
                 f.label = Some(MarkLabel::DiscCentre);
+                let at = f
+                    .track
+                    .whole
+                    .model(MEASURE_ARC_RAD)
+                    .map_or(f.track.latest.1, |m| m.centre_px);
+                self.centre_px = Some(at);
             }
         }
     }
 
     /// Orders the settled feature `candidates` (track index, rotating-frame
-    /// position) as the part's drawing numbers them: the key (the brightest,
-    /// clearly brighter than every other: its light grows with the square of
-    /// its diameter), then the rest counter-clockwise about their centroid.
-    /// `false` when no candidate stands out as the key: the order waits.
+    /// position, light) as the part's drawing numbers them: the key first,
+    /// then the rest counter-clockwise about their centroid. The key is the
+    /// brightest, clearly brighter than every other (a mark's light grows
+    /// with the square of its diameter: it must stand out by at least the
+    /// square root of the key's ratio, and by no more than the ratio with
+    /// the light's spread), and the others are alike in light. `false` when
+    /// that does not hold: the order waits.
     fn order_from_key(
         &self,
-        candidates: &mut Vec<(usize, [f64; 2]), MAX_TRACKS>,
+        candidates: &mut Vec<(usize, [f64; 2], f64), MAX_TRACKS>,
         key_m: f64,
     ) -> bool {
-        let flux = |i: usize| self.tracks.get(i).map_or(0.0, |f| f.track.mean_flux());
         let plain_m = self.settings.diameters.part_feature_m;
-        // Halfway (geometrically) between like marks' light ratio (1) and
-        // the key's, (key / plain)^2.
-        let needed = (key_m / plain_m).max(1.0);
-        let mut brightest: Option<(usize, f64)> = None;
-        let mut second = 0.0_f64;
-        for (k, (i, _)) in candidates.iter().enumerate() {
-            let light = flux(*i);
-            match brightest {
-                Some((_, best)) if light <= best => second = second.max(light),
-                Some((_, best)) => {
-                    second = second.max(best);
-                    brightest = Some((k, light));
-                }
-                None => brightest = Some((k, light)),
-            }
-        }
-        let Some((key_at, key_light)) = brightest else {
+        let ratio = (key_m / plain_m) * (key_m / plain_m);
+        let Some(key_at) = candidates
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1 .2.total_cmp(&b.1 .2))
+            .map(|(k, _)| k)
+        else {
             return false;
         };
-        if !(key_light > 0.0 && key_light >= needed * second) {
+        let key_light = candidates.get(key_at).map_or(0.0, |c| c.2);
+        let (least, most) = candidates
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| *k != key_at)
+            .fold((f64::INFINITY, 0.0f64), |(a, b), (_, c)| {
+                (a.min(c.2), b.max(c.2))
+            });
+        let others_alike = least > 0.0 && most <= least * FEATURE_LIKE_LIGHT;
+        let stands_out = key_light >= libm::sqrt(ratio) * most
+            && key_light <= ratio * FEATURE_LIKE_LIGHT * least;
+        if !(others_alike && stands_out) {
             return false;
         }
         let count = candidates.len().max(1) as f64;
         let (sx, sy) = candidates
             .iter()
-            .fold((0.0, 0.0), |(sx, sy), (_, p)| (sx + p[0], sy + p[1]));
+            .fold((0.0, 0.0), |(sx, sy), c| (sx + c.1[0], sy + c.1[1]));
         let centroid = [sx / count, sy / count];
         let Some(key_p) = candidates.get(key_at).map(|c| c.1) else {
             return false;
@@ -815,7 +963,7 @@ impl Identifier {
             .filter(|&x| x > 0.0)
             .or(self.reference_flux);
         self.reference_flux = reference_flux;
-        let mut candidates: Vec<(usize, [f64; 2]), MAX_TRACKS> = Vec::new();
+        let mut candidates: Vec<(usize, [f64; 2], f64), MAX_TRACKS> = Vec::new();
         for (i, f) in self.tracks.iter().enumerate() {
             if f.label.is_some() || f.blob.is_none() || !Self::turning(f) {
                 continue;
@@ -837,9 +985,25 @@ impl Identifier {
                     continue;
                 }
             }
+            // Its path turns about the disc's centre (a gripper mark
+            // following the part turns about another point).
+            let gate = (CENTRE_GATE_SHARE * disc.radius_px).max(CENTRE_GATE_MIN_PX);
+            let centred = f
+                .track
+                .whole
+                .model(FEATURE_CENTRED_ARC_RAD)
+                .is_some_and(|m| {
+                    libm::hypot(
+                        m.centre_px[0] - disc.centre_px[0],
+                        m.centre_px[1] - disc.centre_px[1],
+                    ) <= gate
+                });
+            if !centred {
+                continue;
+            }
             if let Some(p) = disc.rotating(f.track.latest.1, theta, l) {
                 if libm::hypot(p[0], p[1]) <= self.settings.disc_radius_m * DISC_MARGIN {
-                    let _ = candidates.push((i, p));
+                    let _ = candidates.push((i, p, f.track.mean_flux()));
                 }
             }
         }
@@ -851,12 +1015,21 @@ impl Identifier {
                 .any(|f| matches!(f.label, Some(MarkLabel::PartFeature(_))));
             // The order is stored once: only from tracks followed long
             // enough for their sizes to be well measured.
-            let settled = candidates.iter().all(|(i, _)| {
+            let settled = candidates.iter().all(|(i, _, _)| {
                 self.tracks
                     .get(*i)
                     .is_some_and(|f| f.track.hits >= SETTLED_HITS)
             });
-            if candidates.len() != count || !unlabelled_features || !settled {
+            // ... and alike in light.
+            let (least, most) = candidates
+                .iter()
+                .fold((f64::INFINITY, 0.0f64), |(a, b), (_, _, flux)| {
+                    (a.min(*flux), b.max(*flux))
+                });
+            // (With a key mark, `order_from_key` checks the others alike.)
+            let alike = self.settings.diameters.part_key_m.is_some()
+                || (least > 0.0 && most <= least * FEATURE_LIKE_LIGHT);
+            if candidates.len() != count || !unlabelled_features || !settled || !alike {
                 return;
             }
             match self.settings.diameters.part_key_m {
@@ -870,7 +1043,7 @@ impl Identifier {
                     libm::atan2(x.1[1], x.1[0]).total_cmp(&libm::atan2(y.1[1], y.1[0]))
                 }),
             }
-            for (k, (i, p)) in candidates.iter().enumerate() {
+            for (k, (i, p, _)) in candidates.iter().enumerate() {
                 let _ = self.features_rotating.push(*p);
                 if let Some(f) = self.tracks.get_mut(*i) {
                     f.label = Some(MarkLabel::PartFeature(k as u8));
@@ -900,17 +1073,35 @@ impl Identifier {
         let Some(shift) = anchor else {
             return;
         };
+        // The labelled features' light: a lost one is taken back only by a
+        // track of about their light.
+        // (The key mark's light counts at a plain mark's.)
+        let key_ratio = self.settings.diameters.part_key_m.map_or(1.0, |key_m| {
+            let plain_m = self.settings.diameters.part_feature_m;
+            (key_m / plain_m) * (key_m / plain_m)
+        });
+        let weight = |k: usize| if k == 0 { key_ratio } else { 1.0 };
+        let (mut sum, mut n) = (0.0, 0.0);
+        for f in self.tracks.iter() {
+            if let Some(MarkLabel::PartFeature(j)) = f.label {
+                sum += f.track.mean_flux() / weight(usize::from(j));
+                n += 1.0;
+            }
+        }
+        let plain_flux = sum / n;
         for (k, stored) in self.features_rotating.iter().enumerate() {
             let label = MarkLabel::PartFeature(k as u8);
+            let feature_flux = plain_flux * weight(k);
             if self.tracks.iter().any(|f| f.label == Some(label)) {
                 continue;
             }
             let near: Vec<usize, MAX_TRACKS> = candidates
                 .iter()
-                .filter(|(_, p)| {
+                .filter(|(_, p, flux)| {
                     libm::hypot(p[0] - stored[0] - shift[0], p[1] - stored[1] - shift[1]) <= gate
+                        && Self::in_band(*flux, feature_flux, FEATURE_LIKE_LIGHT)
                 })
-                .map(|(i, _)| *i)
+                .map(|(i, _, _)| *i)
                 .collect();
             if let [i] = near.as_slice() {
                 if let Some(f) = self.tracks.get_mut(*i) {
@@ -936,13 +1127,6 @@ impl Identifier {
         // image, and the reference and the part's features as the disc
         // model turns them (a disc mark that reappears from under the arm
         // starts a new track, which says nothing yet).
-        if let Some(centre) = self
-            .tracks
-            .iter()
-            .find(|f| f.label == Some(MarkLabel::DiscCentre))
-        {
-            self.centre_px = Some(centre.track.latest.1);
-        }
         let mut disc_marks: Vec<PixelPoint, MAX_LABELS> = Vec::new();
         if let Some(centre) = self.centre_px {
             let _ = disc_marks.push(centre);

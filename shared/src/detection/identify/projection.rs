@@ -19,6 +19,14 @@ pub const RING: usize = 48;
 const MIN_POINTS: usize = 12;
 /// Least spread of the base points along their thinnest direction, m (RMS).
 const MIN_SPREAD_M: f64 = 0.01;
+/// The fit is used only near where it was fitted: along each principal
+/// direction of the held points, within this many of their RMS spreads
+/// plus [`COVER_MARGIN_M`] of their mean. Outside, a DLT of eleven
+/// parameters fitted over a thin volume extrapolates badly (5 to 7 px off
+/// where the gripper lifted the part away, seeds 5 and 6), enough to put a
+/// carried part's feature in a hidden mark's gate.
+const COVER_SPREADS: f64 = 4.0;
+const COVER_MARGIN_M: f64 = 0.04;
 
 type Matrix12 = SMatrix<f64, 12, 12>;
 type Vector12 = SVector<f64, 12>;
@@ -34,6 +42,10 @@ pub struct BaseProjection {
     scale: f64,
     fit: Option<(Vector12, [f64; 3])>,
     rms_px: f64,
+    /// The held points' principal directions (columns) and RMS spreads
+    /// along them, m, at the last fit.
+    axes: nalgebra::Matrix3<f64>,
+    spreads_m: [f64; 3],
 }
 
 impl BaseProjection {
@@ -47,6 +59,8 @@ impl BaseProjection {
             scale: if f_px > 0.0 { f_px } else { 1.0 },
             fit: None,
             rms_px: f64::INFINITY,
+            axes: nalgebra::Matrix3::identity(),
+            spreads_m: [0.0; 3],
         }
     }
 
@@ -109,6 +123,9 @@ impl BaseProjection {
         if spread.eigenvalues.min() < MIN_SPREAD_M * MIN_SPREAD_M {
             return None;
         }
+        self.axes = spread.eigenvectors;
+        self.spreads_m = [0, 1, 2]
+            .map(|k| libm::sqrt(spread.eigenvalues.get(k).copied().unwrap_or(0.0).max(0.0)));
         let origin = [mean.x, mean.y, mean.z];
         let mut normal = Matrix12::zeros();
         for (p, px) in self.held() {
@@ -194,6 +211,24 @@ impl BaseProjection {
             row(1) / w * self.scale + self.centre[1],
         ];
         out.iter().all(|c| c.is_finite()).then_some(out)
+    }
+
+    /// The base-frame point lies where the fit was fitted (see
+    /// [`COVER_SPREADS`]).
+    pub fn covers(&self, base_m: [f64; 3]) -> bool {
+        let Some((_, origin)) = self.fit.as_ref() else {
+            return false;
+        };
+        let d = Vector3::new(
+            base_m[0] - origin[0],
+            base_m[1] - origin[1],
+            base_m[2] - origin[2],
+        );
+        (0..3).all(|k| {
+            let along = self.axes.column(k).dot(&d);
+            let spread = self.spreads_m.get(k).copied().unwrap_or(0.0);
+            along.is_finite() && libm::fabs(along) <= COVER_SPREADS * spread + COVER_MARGIN_M
+        })
     }
 
     /// A fit is held and explains its points within `max_rms_px`.

@@ -32,6 +32,11 @@ fn the_projection_is_recovered_from_spread_points() {
     let [tu, tv] = true_pixel(q);
     assert!((u - tu).abs() < 1e-5 && (v - tv).abs() < 1e-5);
 
+    // It is used only near where it was fitted: not 0.6 m away.
+    assert!(projection.covers(q));
+    assert!(!projection.covers([q[0] + 0.6, q[1], q[2]]));
+    assert!(!projection.covers([q[0], q[1], q[2] + 0.6]));
+
     // Points in a plane do not make a trusted projection.
     let mut flat = BaseProjection::new([127.5, 127.5], 290.0);
     for k in 0..20 {
@@ -252,6 +257,16 @@ mod gripper {
             Some(YARDSTICK),
         );
         assert!(found[1].is_none(), "{found:?}");
+        // The gripper far from where the projection was fitted (it lifted
+        // the part away): a blob in mark 1's gate, seen there the frame
+        // before and moving with it (a carried part's feature where the
+        // extrapolated projection puts the hidden mark) is not labelled.
+        for step in 0..4 {
+            let lift = 0.5 + 0.01 * step as f64;
+            let base = marks(k).map(|p| [p[0] + 0.3, p[1], p[2] + lift]);
+            let found = stage.identify(&[Some(blob(base[1], 1))], &base, Some(YARDSTICK));
+            assert!(found[1].is_none(), "{found:?}");
+        }
         // Without the disc's yardstick (the disc not found yet), nothing.
         let mut fresh = EffectorMarks::new(DIAMETERS_M, REFERENCE_M, CENTRE, F_PX);
         for k in 0..40 {
@@ -263,5 +278,143 @@ mod gripper {
             );
             assert!(found.iter().all(Option::is_none));
         }
+    }
+}
+
+/// The disc stage on a synthetic camera: a disc seen from above at 200 px
+/// per metre (foreshortened to 0.9 along the image's y), its centre imaged
+/// at (128, 128), no lens distortion. Marks are given the light the
+/// renderer's do: a part feature about 0.45 of the centre's (nominal
+/// `(16/24)^2`), its blob blurred to the area a reference-sized mark's
+/// would nearly have (what let the old hypothesis take it).
+mod disc {
+    use super::super::*;
+    use crate::detection::Blob;
+
+    const L_M: f64 = 0.38;
+    const SCALE: f64 = 200.0;
+
+    fn settings() -> IdentifySettings {
+        IdentifySettings {
+            lens: LensModel {
+                f_px: 416.0,
+                cx: 127.5,
+                cy: 127.5,
+                k1: 0.0,
+                k2: 0.0,
+            },
+            reference_radius_m: L_M,
+            disc_radius_m: 0.45,
+            part_feature_count: 3,
+            diameters: MarkDiameters {
+                disc_centre_m: 0.024,
+                reference_m: 0.024,
+                part_feature_m: 0.016,
+                effector_m: [0.032, 0.02],
+            },
+            gate_px: 2.0,
+            first_gate_px_per_rad: 77.0,
+        }
+    }
+
+    /// The image at `theta` of the rotating-frame point `p`, m.
+    fn pixel(p: [f64; 2], theta: f64) -> [f64; 2] {
+        let (s, c) = libm::sincos(theta);
+        [
+            128.0 + SCALE * (c * p[0] - s * p[1]),
+            128.0 + 0.9 * SCALE * (s * p[0] + c * p[1]),
+        ]
+    }
+
+    fn blob(at: [f64; 2], area: u32, flux: f64) -> Blob {
+        let r = libm::sqrt(f64::from(area) / core::f64::consts::PI) as f32;
+        Blob {
+            x_px: at[0] as f32,
+            y_px: at[1] as f32,
+            area_px: area,
+            semi_major_px: r,
+            semi_minor_px: r,
+            orientation_rad: 0.0,
+            peak_contrast: 120,
+            mean_contrast: (flux / f64::from(area)) as f32,
+        }
+    }
+
+    const CENTRE_FLUX: f64 = 2000.0;
+    const REFERENCE_FLUX: f64 = 1900.0;
+    const FEATURE_FLUX: f64 = 900.0;
+    /// A part feature on the reference's circle, 2 rad from it.
+    const FEATURE_M: [f64; 2] = [L_M * -0.416, L_M * 0.909];
+
+    fn labels_of(out: &Vec<LabelledPoint, MAX_LABELS>, label: MarkLabel) -> Option<usize> {
+        out.iter().find(|p| p.label == label).map(|p| p.blob)
+    }
+
+    #[test]
+    fn a_part_feature_on_the_references_circle_is_not_taken_for_it() {
+        let mut identifier = Identifier::new(settings());
+        let mut out = Vec::new();
+        let far = [[0.0; 3], [0.1, 0.0, 0.0]];
+        let mut reference_seen = false;
+        for k in 0..80 {
+            let theta = 0.1 * k as f64;
+            // The reference is hidden for the first 50 frames: the feature
+            // is the one turning mark of about its size.
+            let mut blobs: heapless::Vec<Blob, 8> = heapless::Vec::new();
+            let _ = blobs.push(blob(pixel([0.0, 0.0], theta), 18, CENTRE_FLUX));
+            let _ = blobs.push(blob(pixel(FEATURE_M, theta), 11, FEATURE_FLUX));
+            if k >= 50 {
+                let _ = blobs.push(blob(pixel([L_M, 0.0], theta), 18, REFERENCE_FLUX));
+            }
+            identifier.identify(theta, &blobs, &far, &mut out);
+            assert_ne!(
+                labels_of(&out, MarkLabel::Reference),
+                Some(1),
+                "frame {k}: the feature taken for the reference"
+            );
+            if labels_of(&out, MarkLabel::Reference) == Some(2) {
+                reference_seen = true;
+            }
+        }
+        assert!(reference_seen, "the true reference was never labelled");
+    }
+
+    #[test]
+    fn a_mark_resting_beside_the_hidden_centre_is_not_the_centre() {
+        let mut identifier = Identifier::new(settings());
+        let mut out = Vec::new();
+        let far = [[0.0; 3], [0.1, 0.0, 0.0]];
+        let mut centre_frames = [0; 3];
+        for k in 0..110 {
+            let theta = 0.1 * k as f64;
+            let mut blobs: heapless::Vec<Blob, 8> = heapless::Vec::new();
+            let _ = blobs.push(blob(pixel([L_M, 0.0], theta), 18, REFERENCE_FLUX));
+            // Frames 40 to 69: the centre hidden, a gripper mark of the
+            // same light at rest 3 px beside it (after two frames unseen).
+            let phase = match k {
+                0..=39 => 0,
+                40..=69 => 1,
+                _ => 2,
+            };
+            match k {
+                40 | 41 => {}
+                42..=69 => {
+                    let _ = blobs.push(blob([131.0, 129.5], 18, CENTRE_FLUX));
+                }
+                _ => {
+                    let _ = blobs.push(blob(pixel([0.0, 0.0], theta), 18, CENTRE_FLUX));
+                }
+            }
+            identifier.identify(theta, &blobs, &far, &mut out);
+            if labels_of(&out, MarkLabel::DiscCentre).is_some() {
+                centre_frames[phase] += 1;
+            }
+        }
+        assert_eq!(centre_frames[1], 0, "the resting mark taken for the centre");
+        // The centre is labelled before and again soon after.
+        assert!(
+            centre_frames[0] > 10 && centre_frames[2] > 30,
+            "{centre_frames:?}"
+        );
     }
 }
