@@ -2,7 +2,7 @@
 //! observation under it (Eq 1 for the part, Eq 9 for the end effector, the reference
 //! point at `(L cos theta, L sin theta, 0)` and the disc centre at the origin).
 
-use nalgebra::{Matrix2x3, Matrix3, Rotation3, SMatrix, Vector2, Vector3};
+use nalgebra::{Matrix2x3, Matrix3, RealField, Rotation3, SMatrix, Vector2, Vector3};
 
 use super::frame_store::FrameView;
 use super::pinhole::Pinhole;
@@ -42,8 +42,9 @@ pub enum Target {
     Feature {
         /// Which feature.
         index: usize,
-        /// The conveyor angle, rad.
-        theta: f64,
+        /// `cos theta`, `sin theta` of the conveyor angle: computed once a frame
+        /// (a software sincos is thousands of instructions on the Cortex-M4F).
+        cos_sin: [f64; 2],
     },
     /// An end-effector point with known base-frame coordinates.
     Effector(Vector3<f64>),
@@ -59,18 +60,19 @@ pub struct Observation {
 }
 
 /// Jacobian of one residual: camera (rotation increment, centre) and, for features and the
-/// end effector, the block of the unknowns it depends on.
+/// end effector, the block of the unknowns it depends on; in f64, or in f32 where the
+/// bundle adjustment sums its normal equations ([`super::refine`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ResidualJacobian {
+pub struct ResidualJacobian<T: nalgebra::Scalar = f64> {
     /// d residual / d camera pose (rotation, then centre).
-    pub camera: SMatrix<f64, 2, 6>,
+    pub camera: SMatrix<T, 2, 6>,
     /// The other unknowns' block.
-    pub other: OtherBlock,
+    pub other: OtherBlock<T>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 /// The block of a residual's Jacobian besides the camera's.
-pub enum OtherBlock {
+pub enum OtherBlock<T: nalgebra::Scalar = f64> {
     /// The point is known (centre, reference): no other unknown.
     None,
     /// d residual / d feature point (rotating frame).
@@ -78,10 +80,33 @@ pub enum OtherBlock {
         /// Which feature.
         index: usize,
         /// d residual / d feature point.
-        jacobian: Matrix2x3<f64>,
+        jacobian: Matrix2x3<T>,
     },
     /// d residual / d (base_yaw, base_translation).
-    Base(SMatrix<f64, 2, 4>),
+    Base(SMatrix<T, 2, 4>),
+}
+
+/// The scalars a Jacobian is computed in: f64, and f32 (the Cortex-M4F's FPU).
+pub trait JacobianScalar: RealField + Copy {
+    /// The nearest value of this type.
+    fn nearest(value: f64) -> Self;
+}
+
+impl JacobianScalar for f64 {
+    fn nearest(value: f64) -> Self {
+        value
+    }
+}
+
+impl JacobianScalar for f32 {
+    fn nearest(value: f64) -> Self {
+        value as f32
+    }
+}
+
+/// `Rz(theta)` from its cosine and sine.
+fn planar_rotation([c, s]: [f64; 2]) -> Matrix3<f64> {
+    Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
 }
 
 /// Calls `visit` for every stored image point with the given reference radius.
@@ -123,12 +148,13 @@ pub fn for_each_frame_observation(
         });
     }
     if let Some(part) = frame.part {
+        let (s, c) = libm::sincos(frame.theta);
         for (index, pixel) in part.iter().take(feature_count).enumerate() {
             visit(&Observation {
                 pixel: to_vector(*pixel),
                 target: Target::Feature {
                     index,
-                    theta: frame.theta,
+                    cos_sin: [c, s],
                 },
             });
         }
@@ -170,13 +196,16 @@ impl WorkcellModel {
     pub fn point_disc(&self, target: &Target) -> Vector3<f64> {
         match *target {
             Target::KnownDisc(p) => p,
-            Target::Feature { index, theta } => {
-                let p_rotating = self
+            Target::Feature {
+                index,
+                cos_sin: [c, s],
+            } => {
+                let p = self
                     .features_rotating
                     .get(index)
                     .copied()
                     .unwrap_or_default();
-                rotation_z(theta) * p_rotating
+                Vector3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z)
             }
             Target::Effector(p_base) => {
                 rotation_z(-self.base_yaw) * (p_base - self.base_translation)
@@ -199,29 +228,43 @@ impl WorkcellModel {
         pinhole: &Pinhole,
         observation: &Observation,
     ) -> Option<(Vector2<f64>, ResidualJacobian)> {
+        self.residual_with_jacobian_in::<f64>(pinhole, observation)
+    }
+
+    /// The residual (f64, as [`WorkcellModel::residual`]) and its Jacobian in `T`:
+    /// the Jacobian's entries are rounded to `T` from the f64 point in the camera
+    /// frame, so in f32 each is good to about 1e-7 of itself, what a Gauss-Newton
+    /// matrix needs many times over; the residual, where the fit's accuracy lies,
+    /// stays f64.
+    pub fn residual_with_jacobian_in<T: JacobianScalar>(
+        &self,
+        pinhole: &Pinhole,
+        observation: &Observation,
+    ) -> Option<(Vector2<f64>, ResidualJacobian<T>)> {
         let p_disc = self.point_disc(&observation.target);
         let camera_from_disc = self.disc_from_camera.inverse();
-        let camera_from_disc_matrix = *camera_from_disc.matrix();
         let p_camera = camera_from_disc * (p_disc - self.camera_centre_disc);
-        let (pixel, projection) = pinhole.project_with_jacobian(&p_camera)?;
+        let pixel = pinhole.project(&p_camera)?;
+        let to_t = |value: f64| T::nearest(value);
+        let projection = pinhole.projection_jacobian(&p_camera.map(to_t));
         // Right-perturbed rotation R Exp(delta): p_camera -> p_camera - delta x p_camera.
-        let d_rotation = projection * p_camera.cross_matrix();
-        let d_point_disc = projection * camera_from_disc_matrix;
+        let d_rotation = projection * p_camera.map(to_t).cross_matrix();
+        let d_point_disc = projection * camera_from_disc.matrix().map(to_t);
         let d_centre = -d_point_disc;
-        let mut camera = SMatrix::<f64, 2, 6>::zeros();
+        let mut camera = SMatrix::<T, 2, 6>::zeros();
         camera.fixed_view_mut::<2, 3>(0, 0).copy_from(&d_rotation);
         camera.fixed_view_mut::<2, 3>(0, 3).copy_from(&d_centre);
         let other = match observation.target {
             Target::KnownDisc(_) => OtherBlock::None,
-            Target::Feature { index, theta } => OtherBlock::Feature {
+            Target::Feature { index, cos_sin } => OtherBlock::Feature {
                 index,
-                jacobian: d_point_disc * rotation_z(theta),
+                jacobian: d_point_disc * planar_rotation(cos_sin).map(to_t),
             },
             Target::Effector(_) => {
                 // p_disc = Rz(-yaw) (p_base - t): d/d yaw = (p_disc.y, -p_disc.x, 0).
-                let d_yaw = d_point_disc * Vector3::new(p_disc.y, -p_disc.x, 0.0);
-                let d_translation = -(d_point_disc * rotation_z(-self.base_yaw));
-                let mut block = SMatrix::<f64, 2, 4>::zeros();
+                let d_yaw = d_point_disc * Vector3::new(p_disc.y, -p_disc.x, 0.0).map(to_t);
+                let d_translation = -(d_point_disc * rotation_z(-self.base_yaw).map(to_t));
+                let mut block = SMatrix::<T, 2, 4>::zeros();
                 block.fixed_view_mut::<2, 1>(0, 0).copy_from(&d_yaw);
                 block.fixed_view_mut::<2, 3>(0, 1).copy_from(&d_translation);
                 OtherBlock::Base(block)

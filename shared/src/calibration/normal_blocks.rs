@@ -21,7 +21,7 @@
 //! between features. Both are exact rearrangements of the dense solve and inverse: the
 //! tests compare them with nalgebra's on random problems.
 
-use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
+use nalgebra::{Matrix3, RealField, SMatrix, SVector, Scalar, Vector2, Vector3};
 
 use super::cholesky::{factor_in_place, solve_in_place};
 use super::model::{OtherBlock, BASE_OFFSET, FEATURE_OFFSET, PARAMETERS};
@@ -37,8 +37,6 @@ pub const ARROW_PARAMETERS: usize = CAMERA_PARAMETERS + BASE_PARAMETERS;
 /// A matrix over the camera and base parameters (camera first).
 pub type ArrowMatrix = SMatrix<f64, ARROW_PARAMETERS, ARROW_PARAMETERS>;
 type ArrowVector = SVector<f64, ARROW_PARAMETERS>;
-/// `W_i` restricted to its nonzero camera rows.
-type Cross = SMatrix<f64, CAMERA_PARAMETERS, 3>;
 /// A step in the layout of [`super::model::WorkcellModel::retract`].
 pub type Increment = SVector<f64, PARAMETERS>;
 
@@ -91,15 +89,28 @@ pub struct MarginalCovariance {
 /// A covariance between a point of the part (3 rows) and the camera and base parameters.
 pub type PartCross = SMatrix<f64, 3, ARROW_PARAMETERS>;
 
-/// The blocks of the arrowhead normal equations `J^T W J` and gradient `J^T W r`.
+/// The blocks of the arrowhead normal equations `J^T W J` and gradient `J^T W r`,
+/// in the scalar `T` they are summed in.
 #[derive(Debug, Clone, PartialEq)]
-pub struct NormalBlocks {
-    arrow: ArrowMatrix,
-    arrow_gradient: ArrowVector,
-    features: [Matrix3<f64>; MAX_PART_FEATURES],
-    cross: [Cross; MAX_PART_FEATURES],
-    feature_gradients: [Vector3<f64>; MAX_PART_FEATURES],
+pub struct ArrowheadBlocks<T: Scalar> {
+    arrow: SMatrix<T, ARROW_PARAMETERS, ARROW_PARAMETERS>,
+    arrow_gradient: SVector<T, ARROW_PARAMETERS>,
+    features: [Matrix3<T>; MAX_PART_FEATURES],
+    cross: [SMatrix<T, CAMERA_PARAMETERS, 3>; MAX_PART_FEATURES],
+    feature_gradients: [Vector3<T>; MAX_PART_FEATURES],
 }
+
+/// The normal equations the step and the covariance are solved from (f64).
+pub type NormalBlocks = ArrowheadBlocks<f64>;
+
+/// A short run of points summed in f32 (the Cortex-M4F's FPU has no f64: every f64
+/// operation is a software routine) before it is added into [`NormalBlocks`]:
+/// a run of [`RUN_POINTS`] loses about 1e-6 of its sum, the matrix the steps only
+/// need to ~1e-4 (docs/calibration.md, "Precision").
+pub type NormalRun = ArrowheadBlocks<f32>;
+
+/// Points summed in one [`NormalRun`] before it joins the f64 blocks.
+pub const RUN_POINTS: u32 = 64;
 
 impl Default for NormalBlocks {
     fn default() -> Self {
@@ -107,14 +118,14 @@ impl Default for NormalBlocks {
     }
 }
 
-impl NormalBlocks {
+impl<T: RealField + Copy> ArrowheadBlocks<T> {
     /// All blocks zero.
     pub fn zeros() -> Self {
         Self {
-            arrow: ArrowMatrix::zeros(),
-            arrow_gradient: ArrowVector::zeros(),
+            arrow: SMatrix::zeros(),
+            arrow_gradient: SVector::zeros(),
             features: [Matrix3::zeros(); MAX_PART_FEATURES],
-            cross: [Cross::zeros(); MAX_PART_FEATURES],
+            cross: [SMatrix::zeros(); MAX_PART_FEATURES],
             feature_gradients: [Vector3::zeros(); MAX_PART_FEATURES],
         }
     }
@@ -122,10 +133,10 @@ impl NormalBlocks {
     /// Adds one weighted residual: `camera` and `other` are its Jacobian blocks.
     pub fn accumulate(
         &mut self,
-        camera: &SMatrix<f64, 2, CAMERA_PARAMETERS>,
-        other: &OtherBlock,
-        residual: &Vector2<f64>,
-        weight: f64,
+        camera: &SMatrix<T, 2, CAMERA_PARAMETERS>,
+        other: &OtherBlock<T>,
+        residual: &Vector2<T>,
+        weight: T,
     ) {
         let camera_t = camera.transpose() * weight;
         let mut cc = self
@@ -173,6 +184,29 @@ impl NormalBlocks {
                 gb += block_t * residual;
             }
         }
+    }
+}
+
+impl NormalBlocks {
+    /// Adds a run summed in f32 (its first `features` feature blocks; the others
+    /// are zero) and empties the run.
+    pub fn add_run(&mut self, run: &mut NormalRun, features: usize) {
+        self.arrow += run.arrow.map(f64::from);
+        self.arrow_gradient += run.arrow_gradient.map(f64::from);
+        let blocks = self
+            .features
+            .iter_mut()
+            .zip(self.cross.iter_mut())
+            .zip(self.feature_gradients.iter_mut())
+            .zip(run.features.iter().zip(&run.cross))
+            .zip(run.feature_gradients.iter())
+            .take(features);
+        for ((((v, w), g), (run_v, run_w)), run_g) in blocks {
+            *v += run_v.map(f64::from);
+            *w += run_w.map(f64::from);
+            *g += run_g.map(f64::from);
+        }
+        *run = NormalRun::zeros();
     }
 
     /// `N x` for an increment `x` in the layout of [`super::model::WorkcellModel::retract`]
@@ -319,6 +353,50 @@ impl NormalBlocks {
                 .copy_from(&x);
         }
         Some(step)
+    }
+
+    /// How near singular the undamped system is where the step is solved: the
+    /// smallest ratio, over the free parameters, of a Cholesky pivot (the
+    /// information left to a parameter once those eliminated before it are
+    /// known) to its diagonal entry (its information alone), the features
+    /// eliminated first as [`NormalBlocks::damped_step`] does; 0 when a factor
+    /// fails. Sums in f32 move each entry by about 1e-6 of the diagonal, so a
+    /// direction whose ratio is not well above that is lost in them
+    /// ([`super::refine`] then sums in f64).
+    #[inline(never)]
+    pub fn weakest_pivot_ratio(&self, freedom: &Freedom) -> f64 {
+        let mut weakest = 1.0f64;
+        let mut schur = self.arrow_holding(freedom);
+        let diagonal = schur.diagonal();
+        let features = self
+            .features
+            .iter()
+            .zip(&self.cross)
+            .take(freedom.features());
+        for (v, w) in features {
+            let mut factor = *v;
+            if !factor_in_place(&mut factor) {
+                return 0.0;
+            }
+            for d in 0..3 {
+                let pivot = factor.get((d, d)).copied().unwrap_or(0.0);
+                let alone = v.get((d, d)).copied().unwrap_or(0.0);
+                weakest = weakest.min(pivot * pivot / alone);
+            }
+            let mut inverse_cross = w.transpose();
+            solve_in_place(&factor, &mut inverse_cross);
+            let mut cc = schur.fixed_view_mut::<CAMERA_PARAMETERS, CAMERA_PARAMETERS>(0, 0);
+            cc -= w * inverse_cross;
+        }
+        if !factor_in_place(&mut schur) {
+            return 0.0;
+        }
+        for k in (0..ARROW_PARAMETERS).filter(|&k| freedom.arrow_free(k)) {
+            let pivot = schur.get((k, k)).copied().unwrap_or(0.0);
+            let alone = diagonal.get(k).copied().unwrap_or(0.0);
+            weakest = weakest.min(pivot * pivot / alone);
+        }
+        weakest
     }
 
     /// The undamped inverse's camera, base and part-position blocks times `variance`
@@ -713,6 +791,81 @@ mod tests {
                 assert_eq!(covariance.yaw_line, Matrix3::zeros());
             }
         }
+    }
+
+    #[test]
+    fn runs_summed_in_f32_are_the_f64_blocks_to_f32_rounding() {
+        for (seed, freedom) in FREEDOMS.iter().enumerate() {
+            let (blocks, _, _) = random_problem(seed as u64 + 300, freedom);
+            // The same observations again, each run of RUN_POINTS in f32.
+            let mut state = seed as u64 + 300;
+            let mut uniform = move || splitmix(&mut state) - 0.5;
+            let mut mixed = NormalBlocks::zeros();
+            let mut run = NormalRun::zeros();
+            let has_base = freedom.base_free.iter().any(|&free| free);
+            let mut next_feature = 0;
+            for n in 0..160u32 {
+                let camera = SMatrix::<f64, 2, 6>::from_fn(|_, _| uniform());
+                let residual = Vector2::new(uniform(), uniform());
+                let weight = 1.0 + uniform();
+                let other = match n % 4 {
+                    0 => OtherBlock::None,
+                    1 if has_base => OtherBlock::Base(
+                        SMatrix::<f64, 2, 4>::from_fn(|_, _| uniform()).map(|v| v as f32),
+                    ),
+                    _ => {
+                        next_feature += 1;
+                        OtherBlock::Feature {
+                            index: next_feature % freedom.feature_count,
+                            jacobian: Matrix2x3::from_fn(|_, _| uniform() as f32),
+                        }
+                    }
+                };
+                let camera = camera.map(|v| v as f32);
+                run.accumulate(&camera, &other, &residual.map(|v| v as f32), weight as f32);
+                if (n + 1) % RUN_POINTS == 0 {
+                    mixed.add_run(&mut run, freedom.feature_count);
+                }
+            }
+            mixed.add_run(&mut run, freedom.feature_count);
+            let (expected, expected_gradient) = dense(&blocks);
+            let (got, got_gradient) = dense(&mixed);
+            assert!(
+                (got - expected).norm() <= 1e-5 * expected.norm(),
+                "seed {seed}"
+            );
+            assert!(
+                (got_gradient - expected_gradient).norm() <= 1e-5 * expected_gradient.norm(),
+                "seed {seed}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_nearly_dependent_parameter_has_a_small_pivot_ratio() {
+        let freedom = FREEDOMS[0];
+        let (blocks, _, _) = random_problem(11, &freedom);
+        let healthy = blocks.weakest_pivot_ratio(&freedom);
+        assert!(healthy > 1e-3, "{healthy}");
+        // Make the camera's last column all but a copy of its first.
+        let mut nearly = NormalBlocks::zeros();
+        let mut state = 12;
+        for _ in 0..200 {
+            let mut camera = SMatrix::<f64, 2, 6>::from_fn(|_, _| splitmix(&mut state) - 0.5);
+            for r in 0..2 {
+                camera[(r, 5)] = camera[(r, 0)] * (1.0 + 1e-4 * (splitmix(&mut state) - 0.5));
+            }
+            let jacobian = Matrix2x3::from_fn(|_, _| splitmix(&mut state) - 0.5);
+            let index = (splitmix(&mut state) * 3.0) as usize % 3;
+            let other = OtherBlock::Feature { index, jacobian };
+            let base = OtherBlock::Base(SMatrix::<f64, 2, 4>::from_fn(|_, _| {
+                splitmix(&mut state) - 0.5
+            }));
+            nearly.accumulate(&camera, &other, &Vector2::zeros(), 1.0);
+            nearly.accumulate(&camera, &base, &Vector2::zeros(), 1.0);
+        }
+        let weak = nearly.weakest_pivot_ratio(&freedom);
+        assert!(weak < 1e-6, "{weak}");
     }
 
     #[test]

@@ -3,6 +3,7 @@
 
 use nalgebra::{Matrix2x3, Vector2, Vector3};
 
+use super::model::JacobianScalar;
 use crate::observation::CameraIntrinsics;
 
 /// Closest a point may come to the camera plane (m) and still be projected.
@@ -48,22 +49,19 @@ impl Pinhole {
         ))
     }
 
-    /// The projection and its Jacobian with respect to the camera-frame point.
-    pub fn project_with_jacobian(
-        &self,
-        p_camera: &Vector3<f64>,
-    ) -> Option<(Vector2<f64>, Matrix2x3<f64>)> {
-        let pixel = self.project(p_camera)?;
-        let inverse_z = 1.0 / p_camera.z;
-        let scale = self.f_px * inverse_z;
-        let jacobian = Matrix2x3::new(
+    /// The projection's Jacobian with respect to the camera-frame point, in the
+    /// point's scalar (f64, or f32 for the bundle adjustment's normal equations).
+    pub fn projection_jacobian<T: JacobianScalar>(&self, p_camera: &Vector3<T>) -> Matrix2x3<T> {
+        let inverse_z = T::one() / p_camera.z;
+        let scale = T::nearest(self.f_px) * inverse_z;
+        let zero = T::zero();
+        Matrix2x3::new(
             scale,
-            0.0,
+            zero,
             -scale * p_camera.x * inverse_z,
-            0.0,
+            zero,
             scale,
             -scale * p_camera.y * inverse_z,
-        );
-        Some((pixel, jacobian))
+        )
     }
 }

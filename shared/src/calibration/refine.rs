@@ -14,7 +14,9 @@ use super::error::CalibrationError;
 use super::folded::FoldedInformation;
 use super::frame_store::FrameView;
 use super::model::{for_each_observation, WorkcellModel};
-use super::normal_blocks::{Freedom, MarginalCovariance, NormalBlocks};
+use super::normal_blocks::{
+    Freedom, Increment, MarginalCovariance, NormalBlocks, NormalRun, RUN_POINTS,
+};
 use super::pinhole::Pinhole;
 use super::records::EffectorRecord;
 
@@ -45,32 +47,45 @@ struct Loss {
 }
 
 impl Loss {
-    /// IRLS weight of a residual of norm `r`.
-    fn weight(&self, r: f64) -> f64 {
+    /// IRLS weight of a residual of squared norm `r2` (its root taken only
+    /// beyond the Huber threshold).
+    fn weight(&self, r2: f64) -> f64 {
         if let Some(gate) = self.gate_px {
-            if r > gate {
+            if r2 > gate * gate {
                 return 0.0;
             }
         }
-        if r <= self.huber_px {
+        if r2 <= self.huber_px * self.huber_px {
             1.0
         } else {
-            self.huber_px / r
+            self.huber_px / norm_from_squared(r2)
         }
     }
 
-    /// Huber cost, constant beyond the gate (a gated point neither pulls nor pays more).
-    fn cost(&self, r: f64) -> f64 {
+    /// Huber cost of a residual of squared norm `r2`, constant beyond the gate
+    /// (a gated point neither pulls nor pays more).
+    fn cost(&self, r2: f64) -> f64 {
         let k = self.huber_px;
         let capped = match self.gate_px {
-            Some(gate) if r > gate => gate,
-            _ => r,
+            Some(gate) if r2 > gate * gate => gate * gate,
+            _ => r2,
         };
-        if capped <= k {
-            0.5 * capped * capped
+        if capped <= k * k {
+            0.5 * capped
         } else {
-            k * capped - 0.5 * k * k
+            k * norm_from_squared(capped) - 0.5 * k * k
         }
+    }
+}
+
+/// `sqrt(r2)` through f32: good to 1e-7 of itself, what a Huber weight, a Huber
+/// cost beyond the threshold and a histogram bin need; an f64 square root is a
+/// bit-by-bit software loop on the Cortex-M4F, several times the f32 one.
+fn norm_from_squared(r2: f64) -> f64 {
+    if r2 < f64::from(f32::MAX) {
+        f64::from(libm::sqrtf(r2 as f32))
+    } else {
+        libm::sqrt(r2)
     }
 }
 
@@ -100,25 +115,80 @@ fn total_cost(problem: &Problem<'_>, model: &WorkcellModel, loss: &Loss) -> f64 
         problem.reference_radius_m,
         |observation| {
             cost += match model.residual(&problem.pinhole, observation) {
-                Some(r) => loss.cost(r.norm()),
+                Some(r) => loss.cost(r.norm_squared()),
                 // A point pushed behind the camera pays the gate's price.
-                None => loss.cost(loss.gate_px.unwrap_or(1e6)),
+                None => loss.cost(loss.gate_px.map_or(1e12, |gate| gate * gate)),
             };
         },
     );
     cost + problem.folded.map_or(0.0, |folded| folded.cost(model))
 }
 
+/// What the normal equations are summed in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Sums {
+    /// Each point's Jacobian and products in f32, over runs of [`RUN_POINTS`],
+    /// the runs in f64: on the Cortex-M4F, whose FPU has no f64, the f64 pass
+    /// was almost all software floating point.
+    Mixed,
+    /// All in f64: for a system too near singular for f32's rounding
+    /// ([`NormalBlocks::weakest_pivot_ratio`] under [`MIN_MIXED_PIVOT_RATIO`]).
+    Double,
+}
+
+/// The weakest pivot ratio at which [`Sums::Mixed`] is kept: f32 sums move
+/// the entries by about 1e-6 of the diagonal, a hundredth of this.
+/// docs/calibration.md ("Precision") has the measured ratios.
+const MIN_MIXED_PIVOT_RATIO: f64 = 1e-4;
+
 /// The Gauss-Newton normal equations at `model`, in arrowhead blocks written into the
 /// caller's `blocks` (filled in place rather than returned: no second copy on a
-/// firmware stack).
+/// firmware stack). Each point's residual is f64 whatever `sums`.
 fn normal_equations(
+    problem: &Problem<'_>,
+    model: &WorkcellModel,
+    loss: &Loss,
+    sums: Sums,
+    blocks: &mut NormalBlocks,
+) {
+    *blocks = NormalBlocks::zeros();
+    match sums {
+        Sums::Mixed => mixed_normal_equations(problem, model, loss, blocks),
+        Sums::Double => for_each_observation(
+            problem.frames,
+            problem.effectors,
+            problem.feature_count,
+            problem.reference_radius_m,
+            |observation| {
+                let Some((residual, jacobian)) =
+                    model.residual_with_jacobian(&problem.pinhole, observation)
+                else {
+                    return;
+                };
+                let weight = loss.weight(residual.norm_squared());
+                if weight == 0.0 {
+                    return;
+                }
+                blocks.accumulate(&jacobian.camera, &jacobian.other, &residual, weight);
+            },
+        ),
+    }
+    if let Some(folded) = problem.folded {
+        folded.add_to(blocks, model);
+    }
+}
+
+/// [`Sums::Mixed`]: the points' Jacobians and products in f32, summed over
+/// runs of [`RUN_POINTS`] in f32 and the runs in f64.
+fn mixed_normal_equations(
     problem: &Problem<'_>,
     model: &WorkcellModel,
     loss: &Loss,
     blocks: &mut NormalBlocks,
 ) {
-    *blocks = NormalBlocks::zeros();
+    let mut run = NormalRun::zeros();
+    let mut in_run = 0u32;
+    let features = problem.feature_count;
     for_each_observation(
         problem.frames,
         problem.effectors,
@@ -126,20 +196,28 @@ fn normal_equations(
         problem.reference_radius_m,
         |observation| {
             let Some((residual, jacobian)) =
-                model.residual_with_jacobian(&problem.pinhole, observation)
+                model.residual_with_jacobian_in::<f32>(&problem.pinhole, observation)
             else {
                 return;
             };
-            let weight = loss.weight(residual.norm());
+            let weight = loss.weight(residual.norm_squared());
             if weight == 0.0 {
                 return;
             }
-            blocks.accumulate(&jacobian.camera, &jacobian.other, &residual, weight);
+            run.accumulate(
+                &jacobian.camera,
+                &jacobian.other,
+                &residual.map(|v| v as f32),
+                weight as f32,
+            );
+            in_run += 1;
+            if in_run == RUN_POINTS {
+                blocks.add_run(&mut run, features);
+                in_run = 0;
+            }
         },
     );
-    if let Some(folded) = problem.folded {
-        folded.add_to(blocks, model);
-    }
+    blocks.add_run(&mut run, features);
 }
 
 /// What the data can move: unused feature slots, the base without sightings and a
@@ -153,20 +231,37 @@ fn freedom(problem: &Problem<'_>) -> Freedom {
     }
 }
 
+/// The relative decrease of the cost below which an iteration is no progress.
+const PROGRESS: f64 = 1e-12;
+
+/// The Gauss-Newton model's decrease of the cost for `step`:
+/// `-(g^T x + x^T N x / 2)`.
+fn predicted_decrease(blocks: &NormalBlocks, step: &Increment) -> f64 {
+    -(blocks.gradient().dot(step) + 0.5 * step.dot(&blocks.apply(step)))
+}
+
 /// Levenberg-Marquardt on one loss; returns the improved model.
 fn minimise(
     problem: &Problem<'_>,
     start: WorkcellModel,
     loss: &Loss,
     max_iterations: u32,
+    sums: &mut Sums,
 ) -> Result<WorkcellModel, CalibrationError> {
     let mut model = start;
     let mut cost = total_cost(problem, &model, loss);
     let mut damping = 1e-4;
     let freedom = freedom(problem);
     let mut blocks = NormalBlocks::zeros();
-    for _ in 0..max_iterations {
-        normal_equations(problem, &model, loss, &mut blocks);
+    for iteration in 0..max_iterations {
+        normal_equations(problem, &model, loss, *sums, &mut blocks);
+        if iteration == 0
+            && *sums == Sums::Mixed
+            && blocks.weakest_pivot_ratio(&freedom) < MIN_MIXED_PIVOT_RATIO
+        {
+            *sums = Sums::Double;
+            normal_equations(problem, &model, loss, *sums, &mut blocks);
+        }
         let mut improved = false;
         while damping < 1e10 {
             let Some(step) = blocks.damped_step(&freedom, damping) else {
@@ -178,6 +273,13 @@ fn minimise(
                     stage: "bundle adjustment step",
                 });
             }
+            // What the quadratic model promises; once that is below what the
+            // loop counts as progress, no damping can make a step that counts
+            // (without this stop, each phase's last iteration evaluated the
+            // cost some thirty times while the damping climbed to its limit).
+            if predicted_decrease(&blocks, &step) <= PROGRESS * cost.max(1e-30) {
+                break;
+            }
             let candidate = model.retract(&step);
             let candidate_cost = total_cost(problem, &candidate, loss);
             if candidate_cost <= cost {
@@ -185,7 +287,7 @@ fn minimise(
                 model = candidate;
                 cost = candidate_cost;
                 damping = (damping / 3.0).max(1e-9);
-                improved = decrease > 1e-12 * cost.max(1e-30) && step.norm() > 1e-13;
+                improved = decrease > PROGRESS * cost.max(1e-30) && step.norm() > 1e-13;
                 break;
             }
             damping *= 4.0;
@@ -216,7 +318,7 @@ fn robust_sigma(problem: &Problem<'_>, model: &WorkcellModel, nominal_sigma: f64
         |observation| {
             let r = model
                 .residual(&problem.pinhole, observation)
-                .map_or(f64::INFINITY, |r| r.norm());
+                .map_or(f64::INFINITY, |r| norm_from_squared(r.norm_squared()));
             let bin = if r.is_finite() {
                 (r / bin_width) as usize
             } else {
@@ -253,6 +355,7 @@ pub(super) fn measured_sigma(problem: &Problem<'_>, model: &WorkcellModel, prior
 /// The fit of both phases before its covariance.
 struct Fit {
     model: WorkcellModel,
+    sums: Sums,
     rms_px: f64,
     outliers: u32,
     gate_px: f64,
@@ -270,7 +373,7 @@ pub fn refine(
     config: &CalibrationConfig,
 ) -> Result<Refined, CalibrationError> {
     let fit = fit(problem, start, config)?;
-    let covariance = covariance_at(problem, &fit.model, fit.gate_px, fit.rms_px);
+    let covariance = covariance_at(problem, &fit.model, fit.sums, fit.gate_px, fit.rms_px);
     let pixel_sigma_px = measured_sigma(problem, &fit.model, config.pixel_sigma);
     Ok(Refined {
         model: fit.model,
@@ -293,13 +396,14 @@ fn fit(
         huber_px: config.huber_k * sigma,
         gate_px: None,
     };
-    let model = minimise(problem, start, &phase1, config.max_iterations)?;
+    let mut sums = Sums::Mixed;
+    let model = minimise(problem, start, &phase1, config.max_iterations, &mut sums)?;
     let sigma_robust = robust_sigma(problem, &model, sigma).max(sigma * 0.25);
     let phase2 = Loss {
         huber_px: config.huber_k * sigma_robust,
         gate_px: Some(config.outlier_gate_sigma * sigma_robust.max(sigma)),
     };
-    let model = minimise(problem, model, &phase2, config.max_iterations)?;
+    let model = minimise(problem, model, &phase2, config.max_iterations, &mut sums)?;
     let gate = phase2.gate_px.unwrap_or(f64::INFINITY);
     let mut sum_squares = 0.0;
     let mut kept = 0u32;
@@ -310,7 +414,7 @@ fn fit(
         problem.feature_count,
         problem.reference_radius_m,
         |observation| match model.residual(&problem.pinhole, observation) {
-            Some(r) if r.norm() <= gate => {
+            Some(r) if r.norm_squared() <= gate * gate => {
                 sum_squares += r.norm_squared();
                 kept += 1;
             }
@@ -330,6 +434,7 @@ fn fit(
     let rms_px = libm::sqrt(sum_squares / f64::from(kept));
     Ok(Fit {
         model,
+        sums,
         rms_px,
         outliers,
         gate_px: gate,
@@ -343,6 +448,7 @@ fn fit(
 fn covariance_at(
     problem: &Problem<'_>,
     model: &WorkcellModel,
+    sums: Sums,
     gate: f64,
     rms_px: f64,
 ) -> Option<MarginalCovariance> {
@@ -351,7 +457,7 @@ fn covariance_at(
         gate_px: Some(gate),
     };
     let mut blocks = NormalBlocks::zeros();
-    normal_equations(problem, model, &unit, &mut blocks);
+    normal_equations(problem, model, &unit, sums, &mut blocks);
     let variance = (rms_px * rms_px / 2.0).max(1e-30);
     blocks.covariance(&freedom(problem), variance)
 }
