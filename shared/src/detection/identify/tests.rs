@@ -310,6 +310,7 @@ mod disc {
                 disc_centre_m: 0.024,
                 reference_m: 0.024,
                 part_feature_m: 0.016,
+                part_key_m: None,
                 effector_m: [0.032, 0.02],
             },
             gate_px: 2.0,

@@ -133,7 +133,9 @@ impl ArcFit {
 /// A blob followed over frames.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Track {
-    /// The two latest observations (angle, pinhole pixel), the newest last.
+    /// The observation before `previous` (angle, pinhole pixel).
+    pub earlier: Option<(f64, PixelPoint)>,
+    /// The observation before the newest.
     pub previous: Option<(f64, PixelPoint)>,
     /// The newest observation.
     pub latest: (f64, PixelPoint),
@@ -160,6 +162,7 @@ impl Track {
         let mut whole = ArcFit::new(WHOLE_FORGETTING);
         whole.add(theta, p);
         Self {
+            earlier: None,
             previous: None,
             latest: (theta, p),
             hits: 1,
@@ -174,6 +177,7 @@ impl Track {
     /// Takes the next observation.
     pub fn update(&mut self, theta: f64, p: PixelPoint, area_px: f64, flux: f64) {
         self.flux_sum += flux;
+        self.earlier = self.previous;
         self.previous = Some(self.latest);
         self.latest = (theta, p);
         self.hits = self.hits.saturating_add(1);
@@ -193,11 +197,26 @@ impl Track {
         self.area_sum / f64::from(self.hits.max(1))
     }
 
-    /// Where the track's blob should be at `theta`: from its fit when that
-    /// explains the recent path within `max_rms_px` plus 1.5 % of its radius, else by moving it linearly with the angle from its last two
-    /// observations (at rest when the angle has not changed).
+    /// Where the track's blob should be at `theta`. From its fit when that
+    /// explains the recent path within `max_rms_px`. A point far from the
+    /// disc's axis under a tilted camera is not on an affine path (its depth
+    /// changes round the circle: the image moves unevenly with the angle),
+    /// and its fit misses by a pixel or more: then by the parabola through
+    /// its last three observations in the angle, as long as `theta` lies
+    /// within their span past the newest (a short step, where the path's
+    /// curvature is all that matters). Else from the fit when it explains
+    /// the path within `max_rms_px` plus 1.5 % of its radius, else by moving
+    /// it linearly with the angle from its last two observations (at rest
+    /// when the angle has not changed).
     pub fn predict(&self, theta: f64, min_arc_rad: f64, max_rms_px: f64) -> PixelPoint {
-        if let Some(model) = self.fit.model(min_arc_rad) {
+        let model = self.fit.model(min_arc_rad);
+        if let Some(model) = model.filter(|m| m.rms_px <= max_rms_px) {
+            return model.at(theta);
+        }
+        if let Some(p) = self.parabola(theta) {
+            return p;
+        }
+        if let Some(model) = model {
             if model.rms_px <= max_rms_px + 0.015 * model.radius_px() {
                 return model.at(theta);
             }
@@ -210,5 +229,27 @@ impl Track {
             }
             _ => p1,
         }
+    }
+
+    /// The Lagrange parabola through the last three observations at
+    /// `theta`, when their angles are distinct and `theta` lies no further
+    /// past the newest than they span.
+    fn parabola(&self, theta: f64) -> Option<PixelPoint> {
+        let (t0, p0) = self.earlier?;
+        let (t1, p1) = self.previous?;
+        let (t2, p2) = self.latest;
+        let span = (t2 - t0).abs();
+        let distinct = (t1 - t0).abs() > 1e-6 && (t2 - t1).abs() > 1e-6 && span > 1e-6;
+        if !distinct || (theta - t2).abs() > span {
+            return None;
+        }
+        let w0 = (theta - t1) * (theta - t2) / ((t0 - t1) * (t0 - t2));
+        let w1 = (theta - t0) * (theta - t2) / ((t1 - t0) * (t1 - t2));
+        let w2 = (theta - t0) * (theta - t1) / ((t2 - t0) * (t2 - t1));
+        let p = [
+            w0 * p0[0] + w1 * p1[0] + w2 * p2[0],
+            w0 * p0[1] + w1 * p1[1] + w2 * p2[1],
+        ];
+        p.iter().all(|x| x.is_finite()).then_some(p)
     }
 }
