@@ -42,12 +42,13 @@ pub struct BoardTiming {
 /// sightings and poses differ: estimates 2 % and 5 % dearer, the plan 16 %),
 /// and again with the normal equations summed in f32 and the iterations
 /// stopped when the Gauss-Newton model promises no progress (estimates 256
-/// and 442 million, were 535 and 994): 62.1 million instructions a plan.
-pub const MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS: u64 = 255_635_440;
+/// and 442 million, were 535 and 994), and again with the gripper's marks
+/// 8 cm out (254 and 484 million): 64.3 million instructions a plan.
+pub const MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS: u64 = 253_818_400;
 /// See [`MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS`].
-pub const MEASURED_ESTIMATE_FINAL_INSTRUCTIONS: u64 = 441_609_000;
+pub const MEASURED_ESTIMATE_FINAL_INSTRUCTIONS: u64 = 484_207_400;
 /// See [`MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS`].
-pub const MEASURED_PLAN_INSTRUCTIONS: u64 = 62_086_880;
+pub const MEASURED_PLAN_INSTRUCTIONS: u64 = 64_252_200;
 
 /// Cycles an instruction, the pick period's on the cycle model
 /// (docs/performance.md, "Cycles on the STM32F407"): 2.03. The jobs' soft
