@@ -95,12 +95,7 @@ impl CameraSim {
     /// Exposes frame `trigger_id` at `time_s` and sends it on its way; it arrives
     /// after the latency plus uniform jitter.
     pub fn expose(&mut self, trigger_id: u32, time_s: f64, scene: &SceneMarks) {
-        if self
-            .settings
-            .faults
-            .blackout_after_s
-            .is_some_and(|after| time_s >= after)
-        {
+        if self.blacked_out(time_s) {
             return;
         }
         let frame = self.render(trigger_id, time_s, scene);
@@ -111,16 +106,19 @@ impl CameraSim {
     /// from its image (`camera.source = "images"`): it arrives after the
     /// latency like the others, and not at all after a blackout.
     pub fn deliver(&mut self, time_s: f64, frame: CameraFeatureFrame) {
-        if self
-            .settings
-            .faults
-            .blackout_after_s
-            .is_some_and(|after| time_s >= after)
-        {
+        if self.blacked_out(time_s) {
             return;
         }
         self.stats.frames += 1;
         self.send(time_s, frame);
+    }
+
+    /// The blackout fault has begun by `time_s`: no frame leaves the camera.
+    fn blacked_out(&self, time_s: f64) -> bool {
+        self.settings
+            .faults
+            .blackout_after_s
+            .is_some_and(|after| time_s >= after)
     }
 
     fn send(&mut self, time_s: f64, frame: CameraFeatureFrame) {

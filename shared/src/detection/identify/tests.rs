@@ -74,6 +74,18 @@ fn a_turning_point_is_predicted_from_its_path() {
     );
 }
 
+/// The disc's marks of the rendered cell (no key mark) with the given
+/// gripper marks' diameters.
+fn disc_marks_with_effector(effector_m: [f64; 2]) -> MarkDiameters {
+    MarkDiameters {
+        disc_centre_m: 0.024,
+        reference_m: 0.024,
+        part_feature_m: 0.016,
+        part_key_m: None,
+        effector_m,
+    }
+}
+
 #[test]
 fn nothing_is_labelled_from_nothing() {
     let settings = IdentifySettings {
@@ -87,13 +99,7 @@ fn nothing_is_labelled_from_nothing() {
         reference_radius_m: 0.4,
         disc_radius_m: 0.45,
         part_feature_count: 3,
-        diameters: MarkDiameters {
-            disc_centre_m: 0.024,
-            reference_m: 0.024,
-            part_feature_m: 0.016,
-            part_key_m: None,
-            effector_m: [0.02, 0.02],
-        },
+        diameters: disc_marks_with_effector([0.02, 0.02]),
         gate_px: 2.0,
         first_gate_px_per_rad: 77.0,
     };
@@ -306,13 +312,7 @@ mod disc {
             reference_radius_m: L_M,
             disc_radius_m: 0.45,
             part_feature_count: 3,
-            diameters: MarkDiameters {
-                disc_centre_m: 0.024,
-                reference_m: 0.024,
-                part_feature_m: 0.016,
-                part_key_m: None,
-                effector_m: [0.032, 0.02],
-            },
+            diameters: super::disc_marks_with_effector([0.032, 0.02]),
             gate_px: 2.0,
             first_gate_px_per_rad: 77.0,
         }
