@@ -14,7 +14,7 @@ use shared::app::pick::worker::PickWorker;
 
 use super::channels::{Configured, NEWS, NEWS_READY, WORK, WORKER_CONFIG};
 use super::stats;
-use crate::board::{active, CycleCounter};
+use crate::board::{active, interrupt_time, CycleCounter};
 
 /// Hands the news in `pending` to the control loop, taking it. It never
 /// drops a job's result: when the queue is full it wakes the control loop
@@ -96,11 +96,16 @@ fn poll_work(
     if session != *current {
         return Poll::Ready(None);
     }
-    let started = cycles.now();
+    // The job's own instructions: the interrupt handlers that preempt it are
+    // charged to themselves (how many fall inside a job follows the host's
+    // timing, not the job's work).
+    let (started, handlers_before) = (cycles.now(), interrupt_time::spent());
     *news = pick_worker.process(&item);
+    let handlers = interrupt_time::spent().wrapping_sub(handlers_before);
     let cost = cycles
         .now()
         .wrapping_sub(started)
+        .saturating_sub(handlers)
         .saturating_mul(cycles.scale());
     let kind = match &item {
         WorkItem::Observation(_) => stats::JobKind::Observation,

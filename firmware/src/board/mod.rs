@@ -24,6 +24,7 @@ use core::fmt;
 use shared::safety::InterlockSettings;
 
 pub mod fail_safe;
+pub mod interrupt_time;
 #[cfg(any(
     all(feature = "board-qemu", not(feature = "free-run")),
     all(feature = "board-stm32f407", feature = "lock-step")

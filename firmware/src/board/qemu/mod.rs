@@ -28,10 +28,10 @@ use defmt_semihosting as _;
 use super::lock_step::{LockStepPlant, Unwired};
 #[cfg(feature = "free-run")]
 pub use free_run::FreeRunPlant;
-pub use sim_io::InstructionCounter;
+pub use sim_io::{count_now, InstructionCounter};
 pub use uart::Uart0;
 
-use super::{fail_safe, Board, ControlSource, NoWatchdog};
+use super::{fail_safe, interrupt_time, Board, ControlSource, NoWatchdog};
 use crate::executor::{on_interrupt, Level};
 
 pub type Serial = Uart0;
@@ -98,6 +98,7 @@ pub enum InitError {}
 /// `irqn` is the NVIC line (negative for system exceptions).
 #[cortex_m_rt::exception]
 unsafe fn DefaultHandler(irqn: i16) {
+    interrupt_time::enter();
     match irqn {
         0 => uart::on_rx_interrupt(),
         1 => uart::on_tx_interrupt(),
@@ -111,6 +112,7 @@ unsafe fn DefaultHandler(irqn: i16) {
             defmt::error!("unexpected interrupt {}; drives off", irqn);
         }
     }
+    interrupt_time::leave();
 }
 
 #[cortex_m_rt::exception]

@@ -40,11 +40,17 @@ impl InstructionCounter {
     }
 }
 
+/// TIMER0 now, counting up (for the interrupt handlers' tally,
+/// [`crate::board::interrupt_time`], which holds no counter).
+pub fn count_now() -> u32 {
+    // The timer counts down; flip it so the difference of two readings is
+    // the time between them.
+    u32::MAX - VALUE.read()
+}
+
 impl CycleCounter for InstructionCounter {
     fn now(&self) -> u32 {
-        // The timer counts down; flip it so the difference of two readings is
-        // the time between them.
-        u32::MAX - VALUE.read()
+        count_now()
     }
 
     fn scale(&self) -> u32 {

@@ -26,9 +26,15 @@ impl DwtCycles {
     }
 }
 
+/// CYCCNT now (for the interrupt handlers' tally,
+/// [`crate::board::interrupt_time`], which holds no counter).
+pub fn count_now() -> u32 {
+    DWT::cycle_count()
+}
+
 impl CycleCounter for DwtCycles {
     fn now(&self) -> u32 {
-        DWT::cycle_count()
+        count_now()
     }
 
     fn scale(&self) -> u32 {
