@@ -72,6 +72,11 @@ impl Loss {
 
     /// Huber cost of a residual of squared norm `r2`, constant beyond the gate
     /// (a gated point neither pulls nor pays more).
+    /// A point pushed behind the camera pays the gate's price.
+    fn behind_camera_cost(&self) -> f64 {
+        self.cost(self.gate_px.map_or(1e12, |gate| gate * gate))
+    }
+
     fn cost(&self, r2: f64) -> f64 {
         let k = self.huber_px;
         let capped = match self.gate_px {
@@ -124,8 +129,7 @@ fn total_cost(problem: &Problem<'_>, model: &WorkcellModel, loss: &Loss) -> f64 
         |observation| {
             cost += match model.residual(&problem.pinhole, observation) {
                 Some(r) => loss.cost(r.norm_squared()),
-                // A point pushed behind the camera pays the gate's price.
-                None => loss.cost(loss.gate_px.map_or(1e12, |gate| gate * gate)),
+                None => loss.behind_camera_cost(),
             };
         },
     );
@@ -152,38 +156,48 @@ const MIN_MIXED_PIVOT_RATIO: f64 = 1e-4;
 /// The Gauss-Newton normal equations at `model`, in arrowhead blocks written into the
 /// caller's `blocks` (filled in place rather than returned: no second copy on a
 /// firmware stack). Each point's residual is f64 whatever `sums`.
+/// Also returns the cost at `model`, [`total_cost`]'s, from the same
+/// residuals: the first iteration of a phase needs both, and on the
+/// Cortex-M4F a pass over the points is millions of instructions.
 fn normal_equations(
     problem: &Problem<'_>,
     model: &WorkcellModel,
     loss: &Loss,
     sums: Sums,
     blocks: &mut NormalBlocks,
-) {
+) -> f64 {
     *blocks = NormalBlocks::zeros();
-    match sums {
+    let cost = match sums {
         Sums::Mixed => mixed_normal_equations(problem, model, loss, blocks),
-        Sums::Double => for_each_observation(
-            problem.frames,
-            problem.effectors,
-            problem.feature_count,
-            problem.reference_radius_m,
-            |observation| {
-                let Some((residual, jacobian)) =
-                    model.residual_with_jacobian(&problem.pinhole, observation)
-                else {
-                    return;
-                };
-                let weight = loss.weight(residual.norm_squared());
-                if weight == 0.0 {
-                    return;
-                }
-                blocks.accumulate(&jacobian.camera, &jacobian.other, &residual, weight);
-            },
-        ),
-    }
+        Sums::Double => {
+            let mut cost = 0.0;
+            for_each_observation(
+                problem.frames,
+                problem.effectors,
+                problem.feature_count,
+                problem.reference_radius_m,
+                |observation| {
+                    let Some((residual, jacobian)) =
+                        model.residual_with_jacobian(&problem.pinhole, observation)
+                    else {
+                        cost += loss.behind_camera_cost();
+                        return;
+                    };
+                    cost += loss.cost(residual.norm_squared());
+                    let weight = loss.weight(residual.norm_squared());
+                    if weight == 0.0 {
+                        return;
+                    }
+                    blocks.accumulate(&jacobian.camera, &jacobian.other, &residual, weight);
+                },
+            );
+            cost
+        }
+    };
     if let Some(folded) = problem.folded {
         folded.add_to(blocks, model);
     }
+    cost + problem.folded.map_or(0.0, |folded| folded.cost(model))
 }
 
 /// [`Sums::Mixed`]: the points' Jacobians and products in f32, summed over
@@ -193,9 +207,10 @@ fn mixed_normal_equations(
     model: &WorkcellModel,
     loss: &Loss,
     blocks: &mut NormalBlocks,
-) {
+) -> f64 {
     let mut run = NormalRun::zeros();
     let mut in_run = 0u32;
+    let mut cost = 0.0;
     let features = problem.feature_count;
     for_each_observation(
         problem.frames,
@@ -206,8 +221,10 @@ fn mixed_normal_equations(
             let Some((residual, jacobian)) =
                 model.residual_with_jacobian_in::<f32>(&problem.pinhole, observation)
             else {
+                cost += loss.behind_camera_cost();
                 return;
             };
+            cost += loss.cost(residual.norm_squared());
             let weight = loss.weight(residual.norm_squared());
             if weight == 0.0 {
                 return;
@@ -226,6 +243,7 @@ fn mixed_normal_equations(
         },
     );
     blocks.add_run(&mut run, features);
+    cost
 }
 
 /// What the data can move: unused feature slots, the base without sightings and a
@@ -267,18 +285,23 @@ fn minimise(
     sums: &mut Sums,
 ) -> Result<WorkcellModel, CalibrationError> {
     let mut model = start;
-    let mut cost = total_cost(problem, &model, loss);
+    // The model's cost: from the first pass over the points, then from the
+    // accepted candidate's evaluation.
+    let mut cost = f64::INFINITY;
     let mut damping = 1e-4;
     let freedom = freedom(problem);
     let mut blocks = NormalBlocks::zeros();
     for iteration in 0..max_iterations {
-        normal_equations(problem, &model, loss, *sums, &mut blocks);
+        let mut at_model = normal_equations(problem, &model, loss, *sums, &mut blocks);
         if iteration == 0
             && *sums == Sums::Mixed
             && blocks.weakest_pivot_ratio(&freedom) < MIN_MIXED_PIVOT_RATIO
         {
             *sums = Sums::Double;
-            normal_equations(problem, &model, loss, *sums, &mut blocks);
+            at_model = normal_equations(problem, &model, loss, *sums, &mut blocks);
+        }
+        if iteration == 0 {
+            cost = at_model;
         }
         let mut improved = false;
         while damping < 1e10 {
@@ -478,7 +501,7 @@ fn covariance_at(
         sigma_px: rms_px,
     };
     let mut blocks = NormalBlocks::zeros();
-    normal_equations(problem, model, &unit, sums, &mut blocks);
+    let _cost = normal_equations(problem, model, &unit, sums, &mut blocks);
     let variance = (rms_px * rms_px / 2.0).max(1e-30);
     blocks.covariance(&freedom(problem), variance)
 }
