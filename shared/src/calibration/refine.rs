@@ -156,21 +156,56 @@ const MIN_MIXED_PIVOT_RATIO: f64 = 1e-4;
 /// The Gauss-Newton normal equations at `model`, in arrowhead blocks written into the
 /// caller's `blocks` (filled in place rather than returned: no second copy on a
 /// firmware stack). Each point's residual is f64 whatever `sums`.
-/// Also returns the cost at `model`, [`total_cost`]'s, from the same
-/// residuals: the first iteration of a phase needs both, and on the
-/// Cortex-M4F a pass over the points is millions of instructions.
+/// What a pass over the points sums beside the normal equations, from the
+/// same residuals: on the Cortex-M4F a pass is millions of instructions, so
+/// the first iteration of a phase takes its starting cost from here and the
+/// covariance's pass gives the fit's statistics.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct PassSums {
+    /// The loss's cost at the model, [`total_cost`]'s.
+    cost: f64,
+    /// Squared residual norms of the points the loss keeps (weight above 0).
+    kept_squares: f64,
+    /// Those points.
+    kept: u32,
+    /// Points gated out or behind the camera.
+    dropped: u32,
+}
+
+impl PassSums {
+    /// One point's residual of squared norm `r2` (`None`: behind the camera).
+    fn add(&mut self, loss: &Loss, r2: Option<f64>) -> f64 {
+        let Some(r2) = r2 else {
+            self.cost += loss.behind_camera_cost();
+            self.dropped = self.dropped.saturating_add(1);
+            return 0.0;
+        };
+        self.cost += loss.cost(r2);
+        let weight = loss.weight(r2);
+        if weight == 0.0 || r2.is_nan() {
+            self.dropped = self.dropped.saturating_add(1);
+        } else {
+            self.kept_squares += r2;
+            self.kept = self.kept.saturating_add(1);
+        }
+        weight
+    }
+}
+
+/// The normal equations at `model` into `blocks`, and what the pass sums
+/// beside them (the folded observations' cost included, not their points).
 fn normal_equations(
     problem: &Problem<'_>,
     model: &WorkcellModel,
     loss: &Loss,
     sums: Sums,
     blocks: &mut NormalBlocks,
-) -> f64 {
+) -> PassSums {
     *blocks = NormalBlocks::zeros();
-    let cost = match sums {
+    let mut pass = match sums {
         Sums::Mixed => mixed_normal_equations(problem, model, loss, blocks),
         Sums::Double => {
-            let mut cost = 0.0;
+            let mut pass = PassSums::default();
             for_each_observation(
                 problem.frames,
                 problem.effectors,
@@ -180,24 +215,24 @@ fn normal_equations(
                     let Some((residual, jacobian)) =
                         model.residual_with_jacobian(&problem.pinhole, observation)
                     else {
-                        cost += loss.behind_camera_cost();
+                        pass.add(loss, None);
                         return;
                     };
-                    cost += loss.cost(residual.norm_squared());
-                    let weight = loss.weight(residual.norm_squared());
+                    let weight = pass.add(loss, Some(residual.norm_squared()));
                     if weight == 0.0 {
                         return;
                     }
                     blocks.accumulate(&jacobian.camera, &jacobian.other, &residual, weight);
                 },
             );
-            cost
+            pass
         }
     };
     if let Some(folded) = problem.folded {
         folded.add_to(blocks, model);
+        pass.cost += folded.cost(model);
     }
-    cost + problem.folded.map_or(0.0, |folded| folded.cost(model))
+    pass
 }
 
 /// [`Sums::Mixed`]: the points' Jacobians and products in f32, summed over
@@ -207,10 +242,10 @@ fn mixed_normal_equations(
     model: &WorkcellModel,
     loss: &Loss,
     blocks: &mut NormalBlocks,
-) -> f64 {
+) -> PassSums {
     let mut run = NormalRun::zeros();
     let mut in_run = 0u32;
-    let mut cost = 0.0;
+    let mut pass = PassSums::default();
     let features = problem.feature_count;
     for_each_observation(
         problem.frames,
@@ -221,11 +256,10 @@ fn mixed_normal_equations(
             let Some((residual, jacobian)) =
                 model.residual_with_jacobian_in::<f32>(&problem.pinhole, observation)
             else {
-                cost += loss.behind_camera_cost();
+                pass.add(loss, None);
                 return;
             };
-            cost += loss.cost(residual.norm_squared());
-            let weight = loss.weight(residual.norm_squared());
+            let weight = pass.add(loss, Some(residual.norm_squared()));
             if weight == 0.0 {
                 return;
             }
@@ -243,7 +277,7 @@ fn mixed_normal_equations(
         },
     );
     blocks.add_run(&mut run, features);
-    cost
+    pass
 }
 
 /// What the data can move: unused feature slots, the base without sightings and a
@@ -292,13 +326,13 @@ fn minimise(
     let freedom = freedom(problem);
     let mut blocks = NormalBlocks::zeros();
     for iteration in 0..max_iterations {
-        let mut at_model = normal_equations(problem, &model, loss, *sums, &mut blocks);
+        let mut at_model = normal_equations(problem, &model, loss, *sums, &mut blocks).cost;
         if iteration == 0
             && *sums == Sums::Mixed
             && blocks.weakest_pivot_ratio(&freedom) < MIN_MIXED_PIVOT_RATIO
         {
             *sums = Sums::Double;
-            at_model = normal_equations(problem, &model, loss, *sums, &mut blocks);
+            at_model = normal_equations(problem, &model, loss, *sums, &mut blocks).cost;
         }
         if iteration == 0 {
             cost = at_model;
@@ -393,12 +427,10 @@ pub(super) fn measured_sigma(problem: &Problem<'_>, model: &WorkcellModel, prior
     robust_sigma(problem, model, first)
 }
 
-/// The fit of both phases before its covariance.
+/// The fit of both phases before its statistics and covariance.
 struct Fit {
     model: WorkcellModel,
     sums: Sums,
-    rms_px: f64,
-    outliers: u32,
     gate_px: f64,
 }
 
@@ -414,18 +446,18 @@ pub fn refine(
     config: &CalibrationConfig,
 ) -> Result<Refined, CalibrationError> {
     let fit = fit(problem, start, config)?;
-    let covariance = covariance_at(problem, &fit.model, fit.sums, fit.gate_px, fit.rms_px);
+    let optimum = at_optimum(problem, &fit.model, fit.sums, fit.gate_px)?;
     let pixel_sigma_px = measured_sigma(problem, &fit.model, config.pixel_sigma);
     Ok(Refined {
         model: fit.model,
-        rms_px: fit.rms_px,
+        rms_px: optimum.rms_px,
         pixel_sigma_px,
-        outliers: fit.outliers,
-        covariance,
+        outliers: optimum.outliers,
+        covariance: optimum.covariance,
     })
 }
 
-/// Both robust phases, then the residual statistics at the optimum.
+/// Both robust phases.
 #[inline(never)]
 fn fit(
     problem: &Problem<'_>,
@@ -447,25 +479,46 @@ fn fit(
         sigma_px: sigma_robust,
     };
     let model = minimise(problem, model, &phase2, config.max_iterations, &mut sums)?;
-    let gate = phase2.gate_px.unwrap_or(f64::INFINITY);
-    let mut sum_squares = 0.0;
-    let mut kept = 0u32;
-    let mut outliers = 0u32;
-    for_each_observation(
-        problem.frames,
-        problem.effectors,
-        problem.feature_count,
-        problem.reference_radius_m,
-        |observation| match model.residual(&problem.pinhole, observation) {
-            Some(r) if r.norm_squared() <= gate * gate => {
-                sum_squares += r.norm_squared();
-                kept += 1;
-            }
-            _ => outliers += 1,
-        },
-    );
+    Ok(Fit {
+        model,
+        sums,
+        gate_px: phase2.gate_px.unwrap_or(f64::INFINITY),
+    })
+}
+
+/// The fit's statistics and covariance at the optimum.
+struct Optimum {
+    /// RMS of the residuals inside the gate (the folded ones at their
+    /// linearisation), px.
+    rms_px: f64,
+    /// Points outside it (or behind the camera).
+    outliers: u32,
+    covariance: Option<MarginalCovariance>,
+}
+
+/// The residuals' RMS inside the gate and the covariance of the Gauss-Newton
+/// fit at the optimum, with that measured noise level: the inverse of the
+/// undamped information `J^T J` (unit weights inside the gate) times the
+/// per-axis pixel variance `rms^2 / 2`, as far as the uncertainty reads it.
+/// One pass over the points gives both.
+#[inline(never)]
+fn at_optimum(
+    problem: &Problem<'_>,
+    model: &WorkcellModel,
+    sums: Sums,
+    gate: f64,
+) -> Result<Optimum, CalibrationError> {
+    let unit = Loss {
+        huber_px: f64::INFINITY,
+        gate_px: Some(gate),
+        // Only the progress rule reads it, and no iteration runs here.
+        sigma_px: 1.0,
+    };
+    let mut blocks = NormalBlocks::zeros();
+    let pass = normal_equations(problem, model, &unit, sums, &mut blocks);
+    let (mut squares, mut kept, mut outliers) = (pass.kept_squares, pass.kept, pass.dropped);
     if let Some(folded) = problem.folded {
-        sum_squares += folded.squares();
+        squares += folded.squares();
         kept = kept.saturating_add(folded.points());
         outliers = outliers.saturating_add(folded.outliers());
     }
@@ -474,34 +527,11 @@ fn fit(
             stage: "bundle adjustment (no inliers)",
         });
     }
-    let rms_px = libm::sqrt(sum_squares / f64::from(kept));
-    Ok(Fit {
-        model,
-        sums,
+    let rms_px = libm::sqrt(squares / f64::from(kept));
+    let variance = (rms_px * rms_px / 2.0).max(1e-30);
+    Ok(Optimum {
         rms_px,
         outliers,
-        gate_px: gate,
+        covariance: blocks.covariance(&freedom(problem), variance),
     })
-}
-
-/// Covariance of the Gauss-Newton fit at the optimum, with the measured noise level:
-/// the inverse of the undamped information `J^T J` (unit weights inside the gate)
-/// times the per-axis pixel variance `rms^2 / 2`, as far as the uncertainty reads it.
-#[inline(never)]
-fn covariance_at(
-    problem: &Problem<'_>,
-    model: &WorkcellModel,
-    sums: Sums,
-    gate: f64,
-    rms_px: f64,
-) -> Option<MarginalCovariance> {
-    let unit = Loss {
-        huber_px: f64::INFINITY,
-        gate_px: Some(gate),
-        sigma_px: rms_px,
-    };
-    let mut blocks = NormalBlocks::zeros();
-    let _cost = normal_equations(problem, model, &unit, sums, &mut blocks);
-    let variance = (rms_px * rms_px / 2.0).max(1e-30);
-    blocks.covariance(&freedom(problem), variance)
 }
