@@ -140,6 +140,9 @@ pub struct EffectorMarks {
     centre: PixelPoint,
     f_px: f64,
     projection: BaseProjection,
+    /// Undoes the camera's tilt on image vectors of a level plane (see
+    /// [`level_unwarp`]): the identity until the disc is seen.
+    unwarp: [[f64; 2]; 2],
     /// The confirmed signature and the last pair that agreed with it.
     signature: Option<(Signature, Signature)>,
     unconfirmed: Vec<Signature, SIGNATURE_CANDIDATES>,
@@ -156,6 +159,10 @@ pub struct EffectorMarks {
     /// The last pair's blobs (mark 0's, mark 1's) and their lights against
     /// the yardstick (diagnosis).
     pub last_pair: Option<([PixelPoint; 2], [f64; 2])>,
+    /// The last pair's signature (angle, rad; scale) and what became of it
+    /// (diagnosis: 0 stored unconfirmed, 1 confirmed, 2 agreed, 3 angle or
+    /// scale off the confirmed one, 4 not rigid).
+    pub last_signature: Option<(f64, f64, u8)>,
 }
 
 impl EffectorMarks {
@@ -181,6 +188,7 @@ impl EffectorMarks {
             centre,
             f_px,
             projection: BaseProjection::new(centre, f_px),
+            unwarp: IDENTITY,
             signature: None,
             unconfirmed: Vec::new(),
             light: [None; 2],
@@ -188,6 +196,7 @@ impl EffectorMarks {
             previous_blob_px: [None; 2],
             refusals: [[0; 7]; 2],
             last_pair: None,
+            last_signature: None,
         }
     }
 
@@ -200,6 +209,14 @@ impl EffectorMarks {
     /// The projection's correspondences and RMS, px (diagnosis).
     pub fn projection_state(&self) -> (usize, f64) {
         (self.projection.len(), self.projection.rms_px())
+    }
+
+    /// The disc's image: the reference mark's path `c + a cos(theta) + b
+    /// sin(theta)` (`a_px`, `b_px`), the image of a level circle. From then
+    /// on pairs are measured with the tilt undone ([`level_unwarp`]); an
+    /// image that is no ellipse leaves them as they are.
+    pub fn see_disc(&mut self, a_px: [f64; 2], b_px: [f64; 2]) {
+        self.unwarp = level_unwarp(a_px, b_px).unwrap_or(IDENTITY);
     }
 
     /// The two marks are unlike enough to be told apart by their light.
@@ -220,6 +237,7 @@ impl EffectorMarks {
         yardstick: Option<f64>,
     ) -> [Option<LabelledPoint>; 2] {
         self.last_pair = None;
+        self.last_signature = None;
         let disc_known = yardstick.is_some_and(|y| y.is_finite() && y > 0.0);
         let usable = base_m.iter().flatten().all(|x| x.is_finite())
             && distance3(base_m[0], base_m[1]) >= MIN_BASE_SEPARATION_M
@@ -279,7 +297,11 @@ impl EffectorMarks {
         if m1.flux <= 0.0 || !within(m0.flux / m1.flux, self.light_ratio, RATIO_TOLERANCE) {
             return [None, None];
         }
-        let image = [m1.pixel[0] - m0.pixel[0], m1.pixel[1] - m0.pixel[1]];
+        let raw = [m1.pixel[0] - m0.pixel[0], m1.pixel[1] - m0.pixel[1]];
+        // The image vector as a camera square to the level plane would see
+        // it: its angle, and its length against the base-frame one, are
+        // then the same whichever way the pair points.
+        let image = apply(&self.unwarp, raw);
         let separation_px = libm::hypot(image[0], image[1]);
         let base = [base_m[1][0] - base_m[0][0], base_m[1][1] - base_m[0][1]];
         if libm::hypot(base[0], base[1]) < MIN_BASE_SEPARATION_M || separation_px < 1.0 {
@@ -317,14 +339,18 @@ impl EffectorMarks {
                 (base_m[0][2] + base_m[1][2]) / 2.0,
             ],
         };
+        let note = |code: u8| Some((signature.angle_rad, signature.scale, code));
         match self.signature {
             Some((known, last)) => {
-                if !known.agrees(&signature)
-                    || !last.rigid_with(&signature)
-                    || !known.rigid_with(&signature)
-                {
+                if !known.agrees(&signature) {
+                    self.last_signature = note(3);
                     return [None, None];
                 }
+                if !last.rigid_with(&signature) || !known.rigid_with(&signature) {
+                    self.last_signature = note(4);
+                    return [None, None];
+                }
+                self.last_signature = note(2);
                 self.signature = Some((known, signature));
             }
             None => {
@@ -339,13 +365,17 @@ impl EffectorMarks {
                         self.unconfirmed.remove(0);
                     }
                     let _ = self.unconfirmed.push(signature);
+                    self.last_signature = note(0);
                     return [None, None];
                 }
+                self.last_signature = note(1);
                 self.signature = Some((signature, signature));
                 self.unconfirmed.clear();
             }
         }
-        let separation_sq = separation_px * separation_px;
+        // The light against the image's own separation, as the projection's
+        // stage measures it.
+        let separation_sq = raw[0] * raw[0] + raw[1] * raw[1];
         self.learn_light(0, m0.flux / separation_sq);
         self.learn_light(1, m1.flux / separation_sq);
         self.projection.add(base_m[0], m0.pixel);
@@ -481,6 +511,55 @@ impl EffectorMarks {
         }
         found
     }
+}
+
+const IDENTITY: [[f64; 2]; 2] = [[1.0, 0.0], [0.0, 1.0]];
+
+/// `m v` for a 2 x 2 matrix given by rows.
+fn apply(m: &[[f64; 2]; 2], v: [f64; 2]) -> [f64; 2] {
+    [
+        m[0][0] * v[0] + m[0][1] * v[1],
+        m[1][0] * v[0] + m[1][1] * v[1],
+    ]
+}
+
+/// The map that undoes a tilted camera's foreshortening of a level plane,
+/// from the image of a level circle `c + a cos(theta) + b sin(theta)`.
+///
+/// Under an affine camera a level plane's vector `d` images as `M d`, with
+/// `M = [a b] / r` for a circle of radius `r`. With `M = P Q` (`P = (M
+/// M^T)^(1/2)` symmetric, `Q` orthogonal, a mirror for a camera looking
+/// down), `P^-1 M = Q`: a vector stretched by `sigma_max P^-1` images the
+/// plane as a camera square to it would, at the scale of the ellipse's
+/// major axis (which the tilt does not shorten). The stretch is along the
+/// ellipse's minor axis, by the inverse of its aspect. Returns `None` when
+/// the ellipse is degenerate (no tilt can be read from it).
+///
+/// Closed form for a 2 x 2 symmetric positive definite `S = M M^T`:
+/// `S^(1/2) = (S + sqrt(det S) I) / sqrt(tr S + 2 sqrt(det S))`.
+pub fn level_unwarp(a_px: [f64; 2], b_px: [f64; 2]) -> Option<[[f64; 2]; 2]> {
+    let s00 = a_px[0] * a_px[0] + b_px[0] * b_px[0];
+    let s01 = a_px[0] * a_px[1] + b_px[0] * b_px[1];
+    let s11 = a_px[1] * a_px[1] + b_px[1] * b_px[1];
+    let root_det = libm::fabs(a_px[0] * b_px[1] - a_px[1] * b_px[0]);
+    let trace = s00 + s11;
+    // The ellipse's half-axes squared are the eigenvalues of S.
+    let spread = libm::sqrt(((s00 - s11) * (s00 - s11) + 4.0 * s01 * s01).max(0.0));
+    let major_sq = 0.5 * (trace + spread);
+    let norm = libm::sqrt(trace + 2.0 * root_det);
+    // An ellipse thinner than this (a camera looking along the plane) says nothing.
+    if !(root_det.is_finite() && norm.is_finite() && root_det > 0.05 * major_sq && norm > 0.0) {
+        return None;
+    }
+    // sqrt(S) by rows, then its inverse.
+    let (r00, r01, r11) = ((s00 + root_det) / norm, s01 / norm, (s11 + root_det) / norm);
+    let det_root = r00 * r11 - r01 * r01;
+    if !(det_root > 0.0) {
+        return None;
+    }
+    let major = libm::sqrt(major_sq);
+    let k = major / det_root;
+    Some([[k * r11, -k * r01], [-k * r01, k * r00]])
 }
 
 fn labelled(k: usize, pixel: PixelPoint, blob: usize) -> LabelledPoint {
