@@ -12,17 +12,25 @@
 //!    other blob) whose light differs by the marks' ratio is a pair: the
 //!    brighter is mark 0. Each blob's light against a disc mark of its size
 //!    at the pair's scale (the yardstick) must be a whole mark's (a half
-//!    hidden mark 0 would pass the ratio the other way round). Its
-//!    *signature* is the angle of the image vector from mark 0 to mark 1
-//!    plus the angle of the base vector between them (constant for a camera
-//!    looking down: the image of the level plane is a mirrored rotation of
-//!    it, up to the camera's tilt) and the separation against the square
-//!    root of the pair's light (constant: both scale alike with the marks'
-//!    distance from the camera). Labels are given only once a pair agrees
-//!    with an earlier one from `CONFIRM_MOVE_M` away that moved rigidly
-//!    (its midpoint, placed in the camera frame at the depth the separation
-//!    gives, moved as far as the base-frame one), then only to pairs that
-//!    agree with that signature and moved rigidly; each feeds the projection.
+//!    hidden mark 0 would pass the ratio the other way round). The pair is
+//!    placed on the level plane the marks lie in (the gripper points down):
+//!    each mark where its ray meets a plane of the normal the disc's image
+//!    gives ([`level_normals`]; the disc is level too, and its fitted image
+//!    gives the camera's tilt), at the distance that puts them their
+//!    base-frame separation apart. An affine image leaves two normals, so
+//!    each pair is read under both. Its *signature* is the marks' direction
+//!    within the plane less their base-frame direction (constant: the
+//!    plane's axes are the base's turned about the vertical) and their
+//!    separation as seen square on against the square root of their light
+//!    (constant: both scale alike with distance). Labels are given only
+//!    once a pair agrees with an earlier one from `CONFIRM_MOVE_M` away
+//!    that moved rigidly (its midpoint moved in the camera frame as far as
+//!    in the base frame), under the same normal; then only to pairs that
+//!    agree with that signature and moved rigidly under a normal that held
+//!    so far; each feeds the projection. (Taken as if the camera looked
+//!    square at the plane, the depth from the separation was off by up to
+//!    `1 / cos(tilt)` with the pair's direction, and a pair turning with
+//!    the waist under a tilted camera seldom moved rigidly.)
 //! 2. **Projection**, once it holds `MIN_PROJECTION_POINTS` and explains
 //!    them: mark `k` is the one blob (of all) in the gate around its
 //!    projection, free, [`CLEAR_PX`] from every other blob, of mark `k`'s
@@ -88,33 +96,56 @@ const MOTION_PX: f64 = 1.5;
 /// The projection labels on its own once it holds this many points.
 const MIN_PROJECTION_POINTS: usize = 20;
 
+/// A pair read under one hypothesis of the level plane's normal
+/// ([`level_normals`]): the marks placed on the plane through their rays.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct View {
+    /// The marks' direction within the plane less their base-frame
+    /// direction, rad (constant: the plane's axes are the base's turned
+    /// about the vertical).
+    angle_rad: f64,
+    /// The separation the marks would show square to the camera at their
+    /// distance, over the square root of their light with the incidence
+    /// undone (constant: both scale alike with the distance).
+    scale: f64,
+    /// The marks' midpoint in the camera frame (the plane's distance is
+    /// the one that puts them their base-frame separation apart), m.
+    camera_m: [f64; 3],
+}
+
 /// A pair's signature and where it was.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Signature {
-    /// Image angle of mark 0 to mark 1 plus base angle of the same, rad.
-    angle_rad: f64,
-    /// Image separation over the square root of the pair's light.
-    scale: f64,
-    /// The marks' midpoint in the camera frame, at the depth that makes the
-    /// image separation the base-frame one (the marks lie level, about
-    /// square to the camera's axis), m.
-    camera_m: [f64; 3],
-    /// The same midpoint in the base frame, m.
+    /// The pair under each hypothesis of the plane's normal.
+    views: [Option<View>; 2],
+    /// The marks' midpoint in the base frame, m.
     base_m: [f64; 3],
 }
 
 impl Signature {
-    /// The same camera and marks: the same angle and scale.
-    fn agrees(&self, other: &Signature) -> bool {
-        let d = libm::remainder(self.angle_rad - other.angle_rad, core::f64::consts::TAU);
-        d.abs() <= SIGNATURE_ANGLE_RAD
-            && (self.scale - other.scale).abs() <= SIGNATURE_SCALE_SHARE * other.scale
-    }
-
-    /// The gripper moved between the two as a rigid body would be seen.
-    fn rigid_with(&self, other: &Signature) -> bool {
+    /// Under which hypotheses (of those `alive`) the two are the same
+    /// camera and marks (the same angle and scale), and under which the
+    /// gripper moved between them as a rigid body would be seen.
+    fn compare(&self, other: &Signature, alive: [bool; 2]) -> ([bool; 2], [bool; 2]) {
         let moved = distance3(self.base_m, other.base_m);
-        (distance3(self.camera_m, other.camera_m) - moved).abs() <= RIGID_M + RIGID_SHARE * moved
+        let mut agree = [false; 2];
+        let mut rigid = [false; 2];
+        for k in 0..2 {
+            let (Some(Some(a)), Some(Some(b)), Some(true)) =
+                (self.views.get(k), other.views.get(k), alive.get(k))
+            else {
+                continue;
+            };
+            let d = libm::remainder(a.angle_rad - b.angle_rad, core::f64::consts::TAU);
+            let same = d.abs() <= SIGNATURE_ANGLE_RAD
+                && (a.scale - b.scale).abs() <= SIGNATURE_SCALE_SHARE * b.scale;
+            let apart = distance3(a.camera_m, b.camera_m);
+            if let (Some(a), Some(r)) = (agree.get_mut(k), rigid.get_mut(k)) {
+                *a = same;
+                *r = (apart - moved).abs() <= RIGID_M + RIGID_SHARE * moved;
+            }
+        }
+        (agree, rigid)
     }
 }
 
@@ -143,8 +174,13 @@ pub struct EffectorMarks {
     /// Undoes the camera's tilt on image vectors of a level plane (see
     /// [`level_unwarp`]): the identity until the disc is seen.
     unwarp: [[f64; 2]; 2],
-    /// The confirmed signature and the last pair that agreed with it.
-    signature: Option<(Signature, Signature)>,
+    /// The level plane's normal towards the camera, camera frame: the two
+    /// the disc's image allows ([`level_normals`]); straight at the camera
+    /// until the disc is seen.
+    normals: [Option<[f64; 3]>; 2],
+    /// The confirmed signature, the last pair that agreed with it, and
+    /// the hypotheses of the plane's normal under which they agree.
+    signature: Option<(Signature, Signature, [bool; 2])>,
     unconfirmed: Vec<Signature, SIGNATURE_CANDIDATES>,
     /// Each mark's light over the square of the marks' image separation (running mean).
     light: [Option<f64>; 2],
@@ -189,6 +225,7 @@ impl EffectorMarks {
             f_px,
             projection: BaseProjection::new(centre, f_px),
             unwarp: IDENTITY,
+            normals: SQUARE,
             signature: None,
             unconfirmed: Vec::new(),
             light: [None; 2],
@@ -212,11 +249,90 @@ impl EffectorMarks {
     }
 
     /// The disc's image: the reference mark's path `c + a cos(theta) + b
-    /// sin(theta)` (`a_px`, `b_px`), the image of a level circle. From then
-    /// on pairs are measured with the tilt undone ([`level_unwarp`]); an
-    /// image that is no ellipse leaves them as they are.
-    pub fn see_disc(&mut self, a_px: [f64; 2], b_px: [f64; 2]) {
-        self.unwarp = level_unwarp(a_px, b_px).unwrap_or(IDENTITY);
+    /// sin(theta)` (`centre_px`, `a_px`, `b_px`), the image of a level
+    /// circle. From then on pairs are measured with the tilt undone: their
+    /// lights against the yardstick at the scale [`level_unwarp`] gives,
+    /// their signature on the plane of each normal [`level_normals`] gives
+    /// (kept in the order they had, so that a hypothesis stays itself as
+    /// the disc's fit is refined). An image that is no ellipse changes
+    /// nothing.
+    pub fn see_disc(&mut self, centre_px: PixelPoint, a_px: [f64; 2], b_px: [f64; 2]) {
+        if let Some(unwarp) = level_unwarp(a_px, b_px) {
+            self.unwarp = unwarp;
+        }
+        let Some([n0, n1]) = level_normals(self.centre, self.f_px, centre_px, a_px, b_px) else {
+            return;
+        };
+        let near = |a: [f64; 3], b: Option<[f64; 3]>| b.map_or(0.0, |b| dot3(a, b));
+        let [p0, p1] = self.normals;
+        let swapped = p1.is_some() && near(n0, p1) + near(n1, p0) > near(n0, p0) + near(n1, p1);
+        self.normals = if swapped {
+            [Some(n1), Some(n0)]
+        } else {
+            [Some(n0), Some(n1)]
+        };
+    }
+
+    /// The pair `pixels` (mark 0's, mark 1's) of base-frame centres
+    /// `base_m` and light `flux_sum` on the level plane of normal `n`
+    /// (towards the camera, camera frame).
+    fn view(
+        &self,
+        n: [f64; 3],
+        pixels: [PixelPoint; 2],
+        base_m: &[[f64; 3]; 2],
+        flux_sum: f64,
+    ) -> Option<View> {
+        let ray = |p: PixelPoint| {
+            [
+                (p[0] - self.centre[0]) / self.f_px,
+                (p[1] - self.centre[1]) / self.f_px,
+                1.0,
+            ]
+        };
+        // Each ray meets the plane n . X = -h at X = h r / (-n . r).
+        let [q0, q1] = pixels.map(|p| {
+            let r = ray(p);
+            let d = -dot3(n, r);
+            if d > 1e-6 {
+                Some(r.map(|x| x / d))
+            } else {
+                None
+            }
+        });
+        let (q0, q1) = (q0?, q1?);
+        let span = distance3(q0, q1);
+        let separation_m = distance3(base_m[0], base_m[1]);
+        if !(span > 0.0 && separation_m > 0.0) {
+            return None;
+        }
+        let h = separation_m / span;
+        let mid =
+            [0, 1, 2].map(|k| h * (q0.get(k).unwrap_or(&0.0) + q1.get(k).unwrap_or(&0.0)) / 2.0);
+        let v = [0, 1, 2].map(|k| h * (q1.get(k).unwrap_or(&0.0) - q0.get(k).unwrap_or(&0.0)));
+        // The plane's axes: the camera's x laid on it, and the normal's
+        // cross with that (right-handed about the normal, which is the
+        // base's up: the camera looks down).
+        let e1 = {
+            let raw = [1.0 - n[0] * n[0], -n[0] * n[1], -n[0] * n[2]];
+            let norm = libm::sqrt(dot3(raw, raw));
+            if !(norm > 0.1) {
+                return None;
+            }
+            raw.map(|x| x / norm)
+        };
+        let e2 = cross3(n, e1);
+        let base = [base_m[1][0] - base_m[0][0], base_m[1][1] - base_m[0][1]];
+        let distance = libm::sqrt(dot3(mid, mid));
+        let incidence = h / distance;
+        if !(distance > 0.0 && incidence > 0.0 && flux_sum > 0.0) {
+            return None;
+        }
+        Some(View {
+            angle_rad: libm::atan2(dot3(v, e2), dot3(v, e1)) - libm::atan2(base[1], base[0]),
+            scale: (self.f_px * separation_m / distance) / libm::sqrt(flux_sum / incidence),
+            camera_m: mid,
+        })
     }
 
     /// The two marks are unlike enough to be told apart by their light.
@@ -319,57 +435,55 @@ impl EffectorMarks {
         if !gains.iter().all(|g| (GAIN_MIN..=GAIN_MAX).contains(g)) {
             return [None, None];
         }
-        // The midpoint in the camera frame, at the depth the separation gives.
-        let depth_m = self.f_px * distance3(base_m[0], base_m[1]) / separation_px;
-        let middle = [
-            (m0.pixel[0] + m1.pixel[0]) / 2.0,
-            (m0.pixel[1] + m1.pixel[1]) / 2.0,
-        ];
+        let flux_sum = m0.flux + m1.flux;
         let signature = Signature {
-            angle_rad: libm::atan2(image[1], image[0]) + libm::atan2(base[1], base[0]),
-            scale: separation_px / libm::sqrt(m0.flux + m1.flux),
-            camera_m: [
-                depth_m * (middle[0] - self.centre[0]) / self.f_px,
-                depth_m * (middle[1] - self.centre[1]) / self.f_px,
-                depth_m,
-            ],
+            views: self
+                .normals
+                .map(|n| n.and_then(|n| self.view(n, [m0.pixel, m1.pixel], base_m, flux_sum))),
             base_m: [
                 (base_m[0][0] + base_m[1][0]) / 2.0,
                 (base_m[0][1] + base_m[1][1]) / 2.0,
                 (base_m[0][2] + base_m[1][2]) / 2.0,
             ],
         };
-        let note = |code: u8| Some((signature.angle_rad, signature.scale, code));
+        let first = signature.views.iter().flatten().next().copied();
+        let note = |code: u8| first.map(|v| (v.angle_rad, v.scale, code));
         match self.signature {
-            Some((known, last)) => {
-                if !known.agrees(&signature) {
+            Some((known, last, alive)) => {
+                let (agree, rigid) = known.compare(&signature, alive);
+                let (_, rigid_since) = last.compare(&signature, alive);
+                let holds = [0, 1].map(|k| agree[k] && rigid[k] && rigid_since[k]);
+                if !agree.iter().any(|a| *a) {
                     self.last_signature = note(3);
                     return [None, None];
                 }
-                if !last.rigid_with(&signature) || !known.rigid_with(&signature) {
+                if !holds.iter().any(|h| *h) {
                     self.last_signature = note(4);
                     return [None, None];
                 }
                 self.last_signature = note(2);
-                self.signature = Some((known, signature));
+                // The hypotheses it held under stay.
+                self.signature = Some((known, signature, holds));
             }
             None => {
                 // Confirmed by an earlier pair from elsewhere that agrees.
-                let confirmed = self.unconfirmed.iter().any(|s| {
-                    s.agrees(&signature)
-                        && s.rigid_with(&signature)
-                        && distance3(s.base_m, signature.base_m) >= CONFIRM_MOVE_M
+                let confirmed = self.unconfirmed.iter().find_map(|s| {
+                    let (agree, rigid) = s.compare(&signature, [true; 2]);
+                    let holds = [0, 1].map(|k| agree[k] && rigid[k]);
+                    (holds.iter().any(|h| *h)
+                        && distance3(s.base_m, signature.base_m) >= CONFIRM_MOVE_M)
+                        .then_some(holds)
                 });
-                if !confirmed {
+                let Some(holds) = confirmed else {
                     if self.unconfirmed.is_full() {
                         self.unconfirmed.remove(0);
                     }
                     let _ = self.unconfirmed.push(signature);
                     self.last_signature = note(0);
                     return [None, None];
-                }
+                };
                 self.last_signature = note(1);
-                self.signature = Some((signature, signature));
+                self.signature = Some((signature, signature, holds));
                 self.unconfirmed.clear();
             }
         }
@@ -514,6 +628,113 @@ impl EffectorMarks {
 }
 
 const IDENTITY: [[f64; 2]; 2] = [[1.0, 0.0], [0.0, 1.0]];
+
+/// A camera square to the level plane, looking down its normal.
+const SQUARE: [Option<[f64; 3]>; 2] = [Some([0.0, 0.0, -1.0]), None];
+
+fn dot3(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// The level plane's unit normal towards the camera, in the camera frame
+/// (x right, y down, z along the axis), from the image of a level circle
+/// `c + a cos(theta) + b sin(theta)` (pinhole pixels; principal point
+/// `centre`, focal length `f_px`): the two that image it alike.
+///
+/// Near the circle's centre the image moves with a step `s` on the plane
+/// (in its axes `E`, 3 x 2, orthonormal) as `J s = (f / Z) K E s`, with
+/// `K = [I | -c']` and `c' = (c - centre) / f` (the centre's ray is `(c',
+/// 1)`). The fit's `[a b]` is `J` up to a turn within the plane, which the
+/// normal does not see. `K` loses only the ray's direction, so `E = lambda
+/// K^+ J + r w^T` (`r` the unit ray, `K^+ = K^T (K K^T)^-1`) for a scale
+/// `lambda` and a 2-vector `w`; `E^T E = I` reads `lambda^2 Q + w w^T = I`
+/// with `Q = J^T (K K^T)^-1 J`, so `lambda^2 = 1 / mu_max` and `w = +-
+/// sqrt(1 - mu_min / mu_max) v_min` (`Q`'s eigenpairs): two planes, tilted
+/// either way about the ray by the same angle, which the affine image
+/// cannot tell apart (they coincide for a camera square to the plane).
+/// `None` when the image is no ellipse.
+pub fn level_normals(
+    centre: PixelPoint,
+    f_px: f64,
+    circle_centre_px: PixelPoint,
+    a_px: [f64; 2],
+    b_px: [f64; 2],
+) -> Option<[[f64; 3]; 2]> {
+    if !(f_px > 0.0) {
+        return None;
+    }
+    let c = [
+        (circle_centre_px[0] - centre[0]) / f_px,
+        (circle_centre_px[1] - centre[1]) / f_px,
+    ];
+    let k = 1.0 / (1.0 + c[0] * c[0] + c[1] * c[1]);
+    // (K K^T)^-1 = I - c c^T / (1 + |c|^2).
+    let inv = [
+        [1.0 - k * c[0] * c[0], -k * c[0] * c[1]],
+        [-k * c[0] * c[1], 1.0 - k * c[1] * c[1]],
+    ];
+    let columns = [a_px, b_px].map(|v| [v[0] / f_px, v[1] / f_px]);
+    let [ja, jb] = columns;
+    let (ia, ib) = (apply(&inv, ja), apply(&inv, jb));
+    let q00 = ja[0] * ia[0] + ja[1] * ia[1];
+    let q01 = ja[0] * ib[0] + ja[1] * ib[1];
+    let q11 = jb[0] * ib[0] + jb[1] * ib[1];
+    let half_trace = 0.5 * (q00 + q11);
+    let root = libm::sqrt((0.25 * (q00 - q11) * (q00 - q11) + q01 * q01).max(0.0));
+    let (mu_max, mu_min) = (half_trace + root, half_trace - root);
+    // Thinner than an aspect of 0.05 (a camera looking along the plane):
+    // no tilt can be read from it.
+    if !(mu_max.is_finite() && mu_min > 0.0025 * mu_max) {
+        return None;
+    }
+    // Q's eigenvector of mu_min (either form; the longer).
+    let v1 = [q01, mu_min - q00];
+    let v2 = [mu_min - q11, q01];
+    let v = if v1[0] * v1[0] + v1[1] * v1[1] >= v2[0] * v2[0] + v2[1] * v2[1] {
+        v1
+    } else {
+        v2
+    };
+    let v_norm = libm::hypot(v[0], v[1]);
+    let v_min = if v_norm > 1e-12 * mu_max {
+        [v[0] / v_norm, v[1] / v_norm]
+    } else {
+        [1.0, 0.0]
+    };
+    let lambda = 1.0 / libm::sqrt(mu_max);
+    let w_size = libm::sqrt((1.0 - mu_min / mu_max).max(0.0));
+    let r_size = libm::sqrt(k);
+    let ray = [c[0] * r_size, c[1] * r_size, r_size];
+    // K^+ J, column by column: (inv j, -c . inv j).
+    let lift = |i: [f64; 2]| [i[0], i[1], -(c[0] * i[0] + c[1] * i[1])];
+    let (ga, gb) = (lift(ia), lift(ib));
+    let normal = |sign: f64| -> Option<[f64; 3]> {
+        let w = [sign * w_size * v_min[0], sign * w_size * v_min[1]];
+        let e1 = [0, 1, 2].map(|i| {
+            lambda * ga.get(i).copied().unwrap_or(0.0) + ray.get(i).copied().unwrap_or(0.0) * w[0]
+        });
+        let e2 = [0, 1, 2].map(|i| {
+            lambda * gb.get(i).copied().unwrap_or(0.0) + ray.get(i).copied().unwrap_or(0.0) * w[1]
+        });
+        let n = cross3(e1, e2);
+        let size = libm::sqrt(dot3(n, n));
+        if !(size > 1e-9) {
+            return None;
+        }
+        // Towards the camera: against the ray.
+        let sign = if dot3(n, ray) > 0.0 { -1.0 } else { 1.0 };
+        Some(n.map(|x| sign * x / size))
+    };
+    Some([normal(1.0)?, normal(-1.0)?])
+}
 
 /// `m v` for a 2 x 2 matrix given by rows.
 fn apply(m: &[[f64; 2]; 2], v: [f64; 2]) -> [f64; 2] {

@@ -1170,7 +1170,7 @@ impl Identifier {
             .zip(self.reference_flux)
             .map(|(disc, flux)| flux / (disc.scale_px_per_m * disc.scale_px_per_m));
         if let Some(disc) = self.disc {
-            self.effector.see_disc(disc.a_px, disc.b_px);
+            self.effector.see_disc(disc.centre_px, disc.a_px, disc.b_px);
         }
         let found = self
             .effector
