@@ -26,8 +26,8 @@
 //!    once a pair agrees with an earlier one from `CONFIRM_MOVE_M` away
 //!    that moved rigidly (its midpoint moved in the camera frame as far as
 //!    in the base frame), under the same normal; then only to pairs that
-//!    agree with that signature and moved rigidly under a normal that held
-//!    so far; each feeds the projection. (Taken as if the camera looked
+//!    agree with that signature and moved rigidly from it and from the
+//!    last, under the same normal; each feeds the projection. (Taken as if the camera looked
 //!    square at the plane, the depth from the separation was off by up to
 //!    `1 / cos(tilt)` with the pair's direction, and a pair turning with
 //!    the waist under a tilted camera seldom moved rigidly.)
@@ -123,17 +123,15 @@ struct Signature {
 }
 
 impl Signature {
-    /// Under which hypotheses (of those `alive`) the two are the same
-    /// camera and marks (the same angle and scale), and under which the
-    /// gripper moved between them as a rigid body would be seen.
-    fn compare(&self, other: &Signature, alive: [bool; 2]) -> ([bool; 2], [bool; 2]) {
+    /// Under which hypotheses the two are the same camera and marks (the
+    /// same angle and scale), and under which the gripper moved between
+    /// them as a rigid body would be seen.
+    fn compare(&self, other: &Signature) -> ([bool; 2], [bool; 2]) {
         let moved = distance3(self.base_m, other.base_m);
         let mut agree = [false; 2];
         let mut rigid = [false; 2];
         for k in 0..2 {
-            let (Some(Some(a)), Some(Some(b)), Some(true)) =
-                (self.views.get(k), other.views.get(k), alive.get(k))
-            else {
+            let (Some(Some(a)), Some(Some(b))) = (self.views.get(k), other.views.get(k)) else {
                 continue;
             };
             let d = libm::remainder(a.angle_rad - b.angle_rad, core::f64::consts::TAU);
@@ -178,9 +176,8 @@ pub struct EffectorMarks {
     /// the disc's image allows ([`level_normals`]); straight at the camera
     /// until the disc is seen.
     normals: [Option<[f64; 3]>; 2],
-    /// The confirmed signature, the last pair that agreed with it, and
-    /// the hypotheses of the plane's normal under which they agree.
-    signature: Option<(Signature, Signature, [bool; 2])>,
+    /// The confirmed signature and the last pair that agreed with it.
+    signature: Option<(Signature, Signature)>,
     unconfirmed: Vec<Signature, SIGNATURE_CANDIDATES>,
     /// Each mark's light over the square of the marks' image separation (running mean).
     light: [Option<f64>; 2],
@@ -449,9 +446,13 @@ impl EffectorMarks {
         let first = signature.views.iter().flatten().next().copied();
         let note = |code: u8| first.map(|v| (v.angle_rad, v.scale, code));
         match self.signature {
-            Some((known, last, alive)) => {
-                let (agree, rigid) = known.compare(&signature, alive);
-                let (_, rigid_since) = last.compare(&signature, alive);
+            Some((known, last)) => {
+                // Under either normal: the pair that confirmed the
+                // signature may have held under the wrong one alone (the
+                // two differ little over a short move), and held to it
+                // every later pair failed (seed 6, cell 250).
+                let (agree, rigid) = known.compare(&signature);
+                let (_, rigid_since) = last.compare(&signature);
                 let holds = [0, 1].map(|k| agree[k] && rigid[k] && rigid_since[k]);
                 if !agree.iter().any(|a| *a) {
                     self.last_signature = note(3);
@@ -462,28 +463,25 @@ impl EffectorMarks {
                     return [None, None];
                 }
                 self.last_signature = note(2);
-                // The hypotheses it held under stay.
-                self.signature = Some((known, signature, holds));
+                self.signature = Some((known, signature));
             }
             None => {
                 // Confirmed by an earlier pair from elsewhere that agrees.
-                let confirmed = self.unconfirmed.iter().find_map(|s| {
-                    let (agree, rigid) = s.compare(&signature, [true; 2]);
-                    let holds = [0, 1].map(|k| agree[k] && rigid[k]);
-                    (holds.iter().any(|h| *h)
-                        && distance3(s.base_m, signature.base_m) >= CONFIRM_MOVE_M)
-                        .then_some(holds)
+                let confirmed = self.unconfirmed.iter().any(|s| {
+                    let (agree, rigid) = s.compare(&signature);
+                    (agree[0] && rigid[0] || agree[1] && rigid[1])
+                        && distance3(s.base_m, signature.base_m) >= CONFIRM_MOVE_M
                 });
-                let Some(holds) = confirmed else {
+                if !confirmed {
                     if self.unconfirmed.is_full() {
                         self.unconfirmed.remove(0);
                     }
                     let _ = self.unconfirmed.push(signature);
                     self.last_signature = note(0);
                     return [None, None];
-                };
+                }
                 self.last_signature = note(1);
-                self.signature = Some((signature, signature, holds));
+                self.signature = Some((signature, signature));
                 self.unconfirmed.clear();
             }
         }
