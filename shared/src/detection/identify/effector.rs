@@ -313,7 +313,7 @@ impl EffectorMarks {
         let e1 = {
             let raw = [1.0 - n[0] * n[0], -n[0] * n[1], -n[0] * n[2]];
             let norm = libm::sqrt(dot3(raw, raw));
-            if !(norm > 0.1) {
+            if norm.is_nan() || norm <= 0.1 {
                 return None;
             }
             raw.map(|x| x / norm)
@@ -453,7 +453,8 @@ impl EffectorMarks {
                 // every later pair failed (seed 6, cell 250).
                 let (agree, rigid) = known.compare(&signature);
                 let (_, rigid_since) = last.compare(&signature);
-                let holds = [0, 1].map(|k| agree[k] && rigid[k] && rigid_since[k]);
+                let (([a0, a1], [r0, r1]), [s0, s1]) = ((agree, rigid), rigid_since);
+                let holds = [a0 && r0 && s0, a1 && r1 && s1];
                 if !agree.iter().any(|a| *a) {
                     self.last_signature = note(3);
                     return [None, None];
@@ -666,7 +667,7 @@ pub fn level_normals(
     a_px: [f64; 2],
     b_px: [f64; 2],
 ) -> Option<[[f64; 3]; 2]> {
-    if !(f_px > 0.0) {
+    if f_px.is_nan() || f_px <= 0.0 {
         return None;
     }
     let c = [
@@ -724,7 +725,7 @@ pub fn level_normals(
         });
         let n = cross3(e1, e2);
         let size = libm::sqrt(dot3(n, n));
-        if !(size > 1e-9) {
+        if size.is_nan() || size <= 1e-9 {
             return None;
         }
         // Towards the camera: against the ray.
@@ -773,7 +774,7 @@ pub fn level_unwarp(a_px: [f64; 2], b_px: [f64; 2]) -> Option<[[f64; 2]; 2]> {
     // sqrt(S) by rows, then its inverse.
     let (r00, r01, r11) = ((s00 + root_det) / norm, s01 / norm, (s11 + root_det) / norm);
     let det_root = r00 * r11 - r01 * r01;
-    if !(det_root > 0.0) {
+    if det_root.is_nan() || det_root <= 0.0 {
         return None;
     }
     let major = libm::sqrt(major_sq);
