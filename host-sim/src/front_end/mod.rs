@@ -210,6 +210,23 @@ impl FrontEnd {
         if std::env::var_os("FRONT_END_DEBUG").is_some() {
             self.print_debug(row);
         }
+        if std::env::var_os("EFFECTOR_DEBUG").is_some() {
+            let labelled = self
+                .points
+                .iter()
+                .filter(|p| matches!(p.label, MarkLabel::Effector(_)))
+                .count();
+            eprintln!(
+                "eff frame {} base0 {:.3?} base1 {:.3?} pair {:?} sig {:?} proj {:?} labelled {}",
+                row.trigger_id,
+                effector_base_m[0],
+                effector_base_m[1],
+                self.identifier.effector_pair(),
+                self.identifier.effector_signature(),
+                self.identifier.projection_state(),
+                labelled
+            );
+        }
         let t_s = row.capture_time_us as f64 * 1e-6;
         let frame = log_frame(
             &self.run.log.header,

@@ -104,7 +104,12 @@ impl ImageVision {
             for point in labels.points.iter().filter(|p| camera.contains(p.pixel)) {
                 self.stats.labels += 1;
                 match judge.verdict(labels.trigger_id, point) {
-                    Some(Verdict::Wrong) => self.stats.wrong_labels += 1,
+                    Some(Verdict::Wrong) => {
+                        self.stats.wrong_labels += 1;
+                        if std::env::var_os("EFFECTOR_DEBUG").is_some() {
+                            eprintln!("wrong label {:?} frame {trigger_id}", point.label);
+                        }
+                    }
                     Some(Verdict::Off) => self.stats.off_labels += 1,
                     _ => {}
                 }

@@ -12,17 +12,25 @@
 //!    other blob) whose light differs by the marks' ratio is a pair: the
 //!    brighter is mark 0. Each blob's light against a disc mark of its size
 //!    at the pair's scale (the yardstick) must be a whole mark's (a half
-//!    hidden mark 0 would pass the ratio the other way round). Its
-//!    *signature* is the angle of the image vector from mark 0 to mark 1
-//!    plus the angle of the base vector between them (constant for a camera
-//!    looking down: the image of the level plane is a mirrored rotation of
-//!    it, up to the camera's tilt) and the separation against the square
-//!    root of the pair's light (constant: both scale alike with the marks'
-//!    distance from the camera). Labels are given only once a pair agrees
-//!    with an earlier one from `CONFIRM_MOVE_M` away that moved rigidly
-//!    (its midpoint, placed in the camera frame at the depth the separation
-//!    gives, moved as far as the base-frame one), then only to pairs that
-//!    agree with that signature and moved rigidly; each feeds the projection.
+//!    hidden mark 0 would pass the ratio the other way round). The pair is
+//!    placed on the level plane the marks lie in (the gripper points down):
+//!    each mark where its ray meets a plane of the normal the disc's image
+//!    gives ([`level_normals`]; the disc is level too, and its fitted image
+//!    gives the camera's tilt), at the distance that puts them their
+//!    base-frame separation apart. An affine image leaves two normals, so
+//!    each pair is read under both. Its *signature* is the marks' direction
+//!    within the plane less their base-frame direction (constant: the
+//!    plane's axes are the base's turned about the vertical) and their
+//!    separation as seen square on against the square root of their light
+//!    (constant: both scale alike with distance). Labels are given only
+//!    once a pair agrees with an earlier one from `CONFIRM_MOVE_M` away
+//!    that moved rigidly (its midpoint moved in the camera frame as far as
+//!    in the base frame), under the same normal; then only to pairs that
+//!    agree with that signature and moved rigidly from it and from the
+//!    last, under the same normal; each feeds the projection. (Taken as if the camera looked
+//!    square at the plane, the depth from the separation was off by up to
+//!    `1 / cos(tilt)` with the pair's direction, and a pair turning with
+//!    the waist under a tilted camera seldom moved rigidly.)
 //! 2. **Projection**, once it holds `MIN_PROJECTION_POINTS` and explains
 //!    them: mark `k` is the one blob (of all) in the gate around its
 //!    projection, free, [`CLEAR_PX`] from every other blob, of mark `k`'s
@@ -88,33 +96,54 @@ const MOTION_PX: f64 = 1.5;
 /// The projection labels on its own once it holds this many points.
 const MIN_PROJECTION_POINTS: usize = 20;
 
+/// A pair read under one hypothesis of the level plane's normal
+/// ([`level_normals`]): the marks placed on the plane through their rays.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct View {
+    /// The marks' direction within the plane less their base-frame
+    /// direction, rad (constant: the plane's axes are the base's turned
+    /// about the vertical).
+    angle_rad: f64,
+    /// The separation the marks would show square to the camera at their
+    /// distance, over the square root of their light with the incidence
+    /// undone (constant: both scale alike with the distance).
+    scale: f64,
+    /// The marks' midpoint in the camera frame (the plane's distance is
+    /// the one that puts them their base-frame separation apart), m.
+    camera_m: [f64; 3],
+}
+
 /// A pair's signature and where it was.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Signature {
-    /// Image angle of mark 0 to mark 1 plus base angle of the same, rad.
-    angle_rad: f64,
-    /// Image separation over the square root of the pair's light.
-    scale: f64,
-    /// The marks' midpoint in the camera frame, at the depth that makes the
-    /// image separation the base-frame one (the marks lie level, about
-    /// square to the camera's axis), m.
-    camera_m: [f64; 3],
-    /// The same midpoint in the base frame, m.
+    /// The pair under each hypothesis of the plane's normal.
+    views: [Option<View>; 2],
+    /// The marks' midpoint in the base frame, m.
     base_m: [f64; 3],
 }
 
 impl Signature {
-    /// The same camera and marks: the same angle and scale.
-    fn agrees(&self, other: &Signature) -> bool {
-        let d = libm::remainder(self.angle_rad - other.angle_rad, core::f64::consts::TAU);
-        d.abs() <= SIGNATURE_ANGLE_RAD
-            && (self.scale - other.scale).abs() <= SIGNATURE_SCALE_SHARE * other.scale
-    }
-
-    /// The gripper moved between the two as a rigid body would be seen.
-    fn rigid_with(&self, other: &Signature) -> bool {
+    /// Under which hypotheses the two are the same camera and marks (the
+    /// same angle and scale), and under which the gripper moved between
+    /// them as a rigid body would be seen.
+    fn compare(&self, other: &Signature) -> ([bool; 2], [bool; 2]) {
         let moved = distance3(self.base_m, other.base_m);
-        (distance3(self.camera_m, other.camera_m) - moved).abs() <= RIGID_M + RIGID_SHARE * moved
+        let mut agree = [false; 2];
+        let mut rigid = [false; 2];
+        for k in 0..2 {
+            let (Some(Some(a)), Some(Some(b))) = (self.views.get(k), other.views.get(k)) else {
+                continue;
+            };
+            let d = libm::remainder(a.angle_rad - b.angle_rad, core::f64::consts::TAU);
+            let same = d.abs() <= SIGNATURE_ANGLE_RAD
+                && (a.scale - b.scale).abs() <= SIGNATURE_SCALE_SHARE * b.scale;
+            let apart = distance3(a.camera_m, b.camera_m);
+            if let (Some(a), Some(r)) = (agree.get_mut(k), rigid.get_mut(k)) {
+                *a = same;
+                *r = (apart - moved).abs() <= RIGID_M + RIGID_SHARE * moved;
+            }
+        }
+        (agree, rigid)
     }
 }
 
@@ -140,6 +169,13 @@ pub struct EffectorMarks {
     centre: PixelPoint,
     f_px: f64,
     projection: BaseProjection,
+    /// Undoes the camera's tilt on image vectors of a level plane (see
+    /// [`level_unwarp`]): the identity until the disc is seen.
+    unwarp: [[f64; 2]; 2],
+    /// The level plane's normal towards the camera, camera frame: the two
+    /// the disc's image allows ([`level_normals`]); straight at the camera
+    /// until the disc is seen.
+    normals: [Option<[f64; 3]>; 2],
     /// The confirmed signature and the last pair that agreed with it.
     signature: Option<(Signature, Signature)>,
     unconfirmed: Vec<Signature, SIGNATURE_CANDIDATES>,
@@ -156,6 +192,10 @@ pub struct EffectorMarks {
     /// The last pair's blobs (mark 0's, mark 1's) and their lights against
     /// the yardstick (diagnosis).
     pub last_pair: Option<([PixelPoint; 2], [f64; 2])>,
+    /// The last pair's signature (angle, rad; scale) and what became of it
+    /// (diagnosis: 0 stored unconfirmed, 1 confirmed, 2 agreed, 3 angle or
+    /// scale off the confirmed one, 4 not rigid).
+    pub last_signature: Option<(f64, f64, u8)>,
 }
 
 impl EffectorMarks {
@@ -181,6 +221,8 @@ impl EffectorMarks {
             centre,
             f_px,
             projection: BaseProjection::new(centre, f_px),
+            unwarp: IDENTITY,
+            normals: SQUARE,
             signature: None,
             unconfirmed: Vec::new(),
             light: [None; 2],
@@ -188,6 +230,7 @@ impl EffectorMarks {
             previous_blob_px: [None; 2],
             refusals: [[0; 7]; 2],
             last_pair: None,
+            last_signature: None,
         }
     }
 
@@ -200,6 +243,93 @@ impl EffectorMarks {
     /// The projection's correspondences and RMS, px (diagnosis).
     pub fn projection_state(&self) -> (usize, f64) {
         (self.projection.len(), self.projection.rms_px())
+    }
+
+    /// The disc's image: the reference mark's path `c + a cos(theta) + b
+    /// sin(theta)` (`centre_px`, `a_px`, `b_px`), the image of a level
+    /// circle. From then on pairs are measured with the tilt undone: their
+    /// lights against the yardstick at the scale [`level_unwarp`] gives,
+    /// their signature on the plane of each normal [`level_normals`] gives
+    /// (kept in the order they had, so that a hypothesis stays itself as
+    /// the disc's fit is refined). An image that is no ellipse changes
+    /// nothing.
+    pub fn see_disc(&mut self, centre_px: PixelPoint, a_px: [f64; 2], b_px: [f64; 2]) {
+        if let Some(unwarp) = level_unwarp(a_px, b_px) {
+            self.unwarp = unwarp;
+        }
+        let Some([n0, n1]) = level_normals(self.centre, self.f_px, centre_px, a_px, b_px) else {
+            return;
+        };
+        let near = |a: [f64; 3], b: Option<[f64; 3]>| b.map_or(0.0, |b| dot3(a, b));
+        let [p0, p1] = self.normals;
+        let swapped = p1.is_some() && near(n0, p1) + near(n1, p0) > near(n0, p0) + near(n1, p1);
+        self.normals = if swapped {
+            [Some(n1), Some(n0)]
+        } else {
+            [Some(n0), Some(n1)]
+        };
+    }
+
+    /// The pair `pixels` (mark 0's, mark 1's) of base-frame centres
+    /// `base_m` and light `flux_sum` on the level plane of normal `n`
+    /// (towards the camera, camera frame).
+    fn view(
+        &self,
+        n: [f64; 3],
+        pixels: [PixelPoint; 2],
+        base_m: &[[f64; 3]; 2],
+        flux_sum: f64,
+    ) -> Option<View> {
+        let ray = |p: PixelPoint| {
+            [
+                (p[0] - self.centre[0]) / self.f_px,
+                (p[1] - self.centre[1]) / self.f_px,
+                1.0,
+            ]
+        };
+        // Each ray meets the plane n . X = -h at X = h r / (-n . r).
+        let [q0, q1] = pixels.map(|p| {
+            let r = ray(p);
+            let d = -dot3(n, r);
+            if d > 1e-6 {
+                Some(r.map(|x| x / d))
+            } else {
+                None
+            }
+        });
+        let (q0, q1) = (q0?, q1?);
+        let span = distance3(q0, q1);
+        let separation_m = distance3(base_m[0], base_m[1]);
+        if !(span > 0.0 && separation_m > 0.0) {
+            return None;
+        }
+        let h = separation_m / span;
+        let mid =
+            [0, 1, 2].map(|k| h * (q0.get(k).unwrap_or(&0.0) + q1.get(k).unwrap_or(&0.0)) / 2.0);
+        let v = [0, 1, 2].map(|k| h * (q1.get(k).unwrap_or(&0.0) - q0.get(k).unwrap_or(&0.0)));
+        // The plane's axes: the camera's x laid on it, and the normal's
+        // cross with that (right-handed about the normal, which is the
+        // base's up: the camera looks down).
+        let e1 = {
+            let raw = [1.0 - n[0] * n[0], -n[0] * n[1], -n[0] * n[2]];
+            let norm = libm::sqrt(dot3(raw, raw));
+            if norm.is_nan() || norm <= 0.1 {
+                return None;
+            }
+            raw.map(|x| x / norm)
+        };
+        let e2 = cross3(n, e1);
+        let base = [base_m[1][0] - base_m[0][0], base_m[1][1] - base_m[0][1]];
+        let distance = libm::sqrt(dot3(mid, mid));
+        let incidence = h / distance;
+        if !(distance > 0.0 && incidence > 0.0 && flux_sum > 0.0) {
+            return None;
+        }
+        Some(View {
+            angle_rad: libm::atan2(dot3(v, e2), dot3(v, e1)) - libm::atan2(base[1], base[0]),
+            scale: (self.f_px * separation_m / distance) / libm::sqrt(flux_sum / incidence),
+            camera_m: mid,
+        })
     }
 
     /// The two marks are unlike enough to be told apart by their light.
@@ -220,6 +350,7 @@ impl EffectorMarks {
         yardstick: Option<f64>,
     ) -> [Option<LabelledPoint>; 2] {
         self.last_pair = None;
+        self.last_signature = None;
         let disc_known = yardstick.is_some_and(|y| y.is_finite() && y > 0.0);
         let usable = base_m.iter().flatten().all(|x| x.is_finite())
             && distance3(base_m[0], base_m[1]) >= MIN_BASE_SEPARATION_M
@@ -279,7 +410,11 @@ impl EffectorMarks {
         if m1.flux <= 0.0 || !within(m0.flux / m1.flux, self.light_ratio, RATIO_TOLERANCE) {
             return [None, None];
         }
-        let image = [m1.pixel[0] - m0.pixel[0], m1.pixel[1] - m0.pixel[1]];
+        let raw = [m1.pixel[0] - m0.pixel[0], m1.pixel[1] - m0.pixel[1]];
+        // The image vector as a camera square to the level plane would see
+        // it: its angle, and its length against the base-frame one, are
+        // then the same whichever way the pair points.
+        let image = apply(&self.unwarp, raw);
         let separation_px = libm::hypot(image[0], image[1]);
         let base = [base_m[1][0] - base_m[0][0], base_m[1][1] - base_m[0][1]];
         if libm::hypot(base[0], base[1]) < MIN_BASE_SEPARATION_M || separation_px < 1.0 {
@@ -297,41 +432,45 @@ impl EffectorMarks {
         if !gains.iter().all(|g| (GAIN_MIN..=GAIN_MAX).contains(g)) {
             return [None, None];
         }
-        // The midpoint in the camera frame, at the depth the separation gives.
-        let depth_m = self.f_px * distance3(base_m[0], base_m[1]) / separation_px;
-        let middle = [
-            (m0.pixel[0] + m1.pixel[0]) / 2.0,
-            (m0.pixel[1] + m1.pixel[1]) / 2.0,
-        ];
+        let flux_sum = m0.flux + m1.flux;
         let signature = Signature {
-            angle_rad: libm::atan2(image[1], image[0]) + libm::atan2(base[1], base[0]),
-            scale: separation_px / libm::sqrt(m0.flux + m1.flux),
-            camera_m: [
-                depth_m * (middle[0] - self.centre[0]) / self.f_px,
-                depth_m * (middle[1] - self.centre[1]) / self.f_px,
-                depth_m,
-            ],
+            views: self
+                .normals
+                .map(|n| n.and_then(|n| self.view(n, [m0.pixel, m1.pixel], base_m, flux_sum))),
             base_m: [
                 (base_m[0][0] + base_m[1][0]) / 2.0,
                 (base_m[0][1] + base_m[1][1]) / 2.0,
                 (base_m[0][2] + base_m[1][2]) / 2.0,
             ],
         };
+        let first = signature.views.iter().flatten().next().copied();
+        let note = |code: u8| first.map(|v| (v.angle_rad, v.scale, code));
         match self.signature {
             Some((known, last)) => {
-                if !known.agrees(&signature)
-                    || !last.rigid_with(&signature)
-                    || !known.rigid_with(&signature)
-                {
+                // Under either normal: the pair that confirmed the
+                // signature may have held under the wrong one alone (the
+                // two differ little over a short move), and held to it
+                // every later pair failed (seed 6, cell 250).
+                let (agree, rigid) = known.compare(&signature);
+                let (_, rigid_since) = last.compare(&signature);
+                let (([a0, a1], [r0, r1]), [s0, s1]) = ((agree, rigid), rigid_since);
+                let holds = [a0 && r0 && s0, a1 && r1 && s1];
+                if !agree.iter().any(|a| *a) {
+                    self.last_signature = note(3);
                     return [None, None];
                 }
+                if !holds.iter().any(|h| *h) {
+                    self.last_signature = note(4);
+                    return [None, None];
+                }
+                self.last_signature = note(2);
                 self.signature = Some((known, signature));
             }
             None => {
                 // Confirmed by an earlier pair from elsewhere that agrees.
                 let confirmed = self.unconfirmed.iter().any(|s| {
-                    s.agrees(&signature)
-                        && s.rigid_with(&signature)
+                    let (agree, rigid) = s.compare(&signature);
+                    (agree[0] && rigid[0] || agree[1] && rigid[1])
                         && distance3(s.base_m, signature.base_m) >= CONFIRM_MOVE_M
                 });
                 if !confirmed {
@@ -339,13 +478,17 @@ impl EffectorMarks {
                         self.unconfirmed.remove(0);
                     }
                     let _ = self.unconfirmed.push(signature);
+                    self.last_signature = note(0);
                     return [None, None];
                 }
+                self.last_signature = note(1);
                 self.signature = Some((signature, signature));
                 self.unconfirmed.clear();
             }
         }
-        let separation_sq = separation_px * separation_px;
+        // The light against the image's own separation, as the projection's
+        // stage measures it.
+        let separation_sq = raw[0] * raw[0] + raw[1] * raw[1];
         self.learn_light(0, m0.flux / separation_sq);
         self.learn_light(1, m1.flux / separation_sq);
         self.projection.add(base_m[0], m0.pixel);
@@ -481,6 +624,162 @@ impl EffectorMarks {
         }
         found
     }
+}
+
+const IDENTITY: [[f64; 2]; 2] = [[1.0, 0.0], [0.0, 1.0]];
+
+/// A camera square to the level plane, looking down its normal.
+const SQUARE: [Option<[f64; 3]>; 2] = [Some([0.0, 0.0, -1.0]), None];
+
+fn dot3(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// The level plane's unit normal towards the camera, in the camera frame
+/// (x right, y down, z along the axis), from the image of a level circle
+/// `c + a cos(theta) + b sin(theta)` (pinhole pixels; principal point
+/// `centre`, focal length `f_px`): the two that image it alike.
+///
+/// Near the circle's centre the image moves with a step `s` on the plane
+/// (in its axes `E`, 3 x 2, orthonormal) as `J s = (f / Z) K E s`, with
+/// `K = [I | -c']` and `c' = (c - centre) / f` (the centre's ray is `(c',
+/// 1)`). The fit's `[a b]` is `J` up to a turn within the plane, which the
+/// normal does not see. `K` loses only the ray's direction, so `E = lambda
+/// K^+ J + r w^T` (`r` the unit ray, `K^+ = K^T (K K^T)^-1`) for a scale
+/// `lambda` and a 2-vector `w`; `E^T E = I` reads `lambda^2 Q + w w^T = I`
+/// with `Q = J^T (K K^T)^-1 J`, so `lambda^2 = 1 / mu_max` and `w = +-
+/// sqrt(1 - mu_min / mu_max) v_min` (`Q`'s eigenpairs): two planes, tilted
+/// either way about the ray by the same angle, which the affine image
+/// cannot tell apart (they coincide for a camera square to the plane).
+/// `None` when the image is no ellipse.
+pub fn level_normals(
+    centre: PixelPoint,
+    f_px: f64,
+    circle_centre_px: PixelPoint,
+    a_px: [f64; 2],
+    b_px: [f64; 2],
+) -> Option<[[f64; 3]; 2]> {
+    if f_px.is_nan() || f_px <= 0.0 {
+        return None;
+    }
+    let c = [
+        (circle_centre_px[0] - centre[0]) / f_px,
+        (circle_centre_px[1] - centre[1]) / f_px,
+    ];
+    let k = 1.0 / (1.0 + c[0] * c[0] + c[1] * c[1]);
+    // (K K^T)^-1 = I - c c^T / (1 + |c|^2).
+    let inv = [
+        [1.0 - k * c[0] * c[0], -k * c[0] * c[1]],
+        [-k * c[0] * c[1], 1.0 - k * c[1] * c[1]],
+    ];
+    let columns = [a_px, b_px].map(|v| [v[0] / f_px, v[1] / f_px]);
+    let [ja, jb] = columns;
+    let (ia, ib) = (apply(&inv, ja), apply(&inv, jb));
+    let q00 = ja[0] * ia[0] + ja[1] * ia[1];
+    let q01 = ja[0] * ib[0] + ja[1] * ib[1];
+    let q11 = jb[0] * ib[0] + jb[1] * ib[1];
+    let half_trace = 0.5 * (q00 + q11);
+    let root = libm::sqrt((0.25 * (q00 - q11) * (q00 - q11) + q01 * q01).max(0.0));
+    let (mu_max, mu_min) = (half_trace + root, half_trace - root);
+    // Thinner than an aspect of 0.05 (a camera looking along the plane):
+    // no tilt can be read from it.
+    if !(mu_max.is_finite() && mu_min > 0.0025 * mu_max) {
+        return None;
+    }
+    // Q's eigenvector of mu_min (either form; the longer).
+    let v1 = [q01, mu_min - q00];
+    let v2 = [mu_min - q11, q01];
+    let v = if v1[0] * v1[0] + v1[1] * v1[1] >= v2[0] * v2[0] + v2[1] * v2[1] {
+        v1
+    } else {
+        v2
+    };
+    let v_norm = libm::hypot(v[0], v[1]);
+    let v_min = if v_norm > 1e-12 * mu_max {
+        [v[0] / v_norm, v[1] / v_norm]
+    } else {
+        [1.0, 0.0]
+    };
+    let lambda = 1.0 / libm::sqrt(mu_max);
+    let w_size = libm::sqrt((1.0 - mu_min / mu_max).max(0.0));
+    let r_size = libm::sqrt(k);
+    let ray = [c[0] * r_size, c[1] * r_size, r_size];
+    // K^+ J, column by column: (inv j, -c . inv j).
+    let lift = |i: [f64; 2]| [i[0], i[1], -(c[0] * i[0] + c[1] * i[1])];
+    let (ga, gb) = (lift(ia), lift(ib));
+    let normal = |sign: f64| -> Option<[f64; 3]> {
+        let w = [sign * w_size * v_min[0], sign * w_size * v_min[1]];
+        let e1 = [0, 1, 2].map(|i| {
+            lambda * ga.get(i).copied().unwrap_or(0.0) + ray.get(i).copied().unwrap_or(0.0) * w[0]
+        });
+        let e2 = [0, 1, 2].map(|i| {
+            lambda * gb.get(i).copied().unwrap_or(0.0) + ray.get(i).copied().unwrap_or(0.0) * w[1]
+        });
+        let n = cross3(e1, e2);
+        let size = libm::sqrt(dot3(n, n));
+        if size.is_nan() || size <= 1e-9 {
+            return None;
+        }
+        // Towards the camera: against the ray.
+        let sign = if dot3(n, ray) > 0.0 { -1.0 } else { 1.0 };
+        Some(n.map(|x| sign * x / size))
+    };
+    Some([normal(1.0)?, normal(-1.0)?])
+}
+
+/// `m v` for a 2 x 2 matrix given by rows.
+fn apply(m: &[[f64; 2]; 2], v: [f64; 2]) -> [f64; 2] {
+    [
+        m[0][0] * v[0] + m[0][1] * v[1],
+        m[1][0] * v[0] + m[1][1] * v[1],
+    ]
+}
+
+/// The map that undoes a tilted camera's foreshortening of a level plane,
+/// from the image of a level circle `c + a cos(theta) + b sin(theta)`.
+///
+/// Under an affine camera a level plane's vector `d` images as `M d`, with
+/// `M = [a b] / r` for a circle of radius `r`. With `M = P Q` (`P = (M
+/// M^T)^(1/2)` symmetric, `Q` orthogonal, a mirror for a camera looking
+/// down), `P^-1 M = Q`: a vector stretched by `sigma_max P^-1` images the
+/// plane as a camera square to it would, at the scale of the ellipse's
+/// major axis (which the tilt does not shorten). The stretch is along the
+/// ellipse's minor axis, by the inverse of its aspect. Returns `None` when
+/// the ellipse is degenerate (no tilt can be read from it).
+///
+/// Closed form for a 2 x 2 symmetric positive definite `S = M M^T`:
+/// `S^(1/2) = (S + sqrt(det S) I) / sqrt(tr S + 2 sqrt(det S))`.
+pub fn level_unwarp(a_px: [f64; 2], b_px: [f64; 2]) -> Option<[[f64; 2]; 2]> {
+    let s00 = a_px[0] * a_px[0] + b_px[0] * b_px[0];
+    let s01 = a_px[0] * a_px[1] + b_px[0] * b_px[1];
+    let s11 = a_px[1] * a_px[1] + b_px[1] * b_px[1];
+    let root_det = libm::fabs(a_px[0] * b_px[1] - a_px[1] * b_px[0]);
+    let trace = s00 + s11;
+    // The ellipse's half-axes squared are the eigenvalues of S.
+    let spread = libm::sqrt(((s00 - s11) * (s00 - s11) + 4.0 * s01 * s01).max(0.0));
+    let major_sq = 0.5 * (trace + spread);
+    let norm = libm::sqrt(trace + 2.0 * root_det);
+    // An ellipse thinner than this (a camera looking along the plane) says nothing.
+    if !(root_det.is_finite() && norm.is_finite() && root_det > 0.05 * major_sq && norm > 0.0) {
+        return None;
+    }
+    // sqrt(S) by rows, then its inverse.
+    let (r00, r01, r11) = ((s00 + root_det) / norm, s01 / norm, (s11 + root_det) / norm);
+    let det_root = r00 * r11 - r01 * r01;
+    if det_root.is_nan() || det_root <= 0.0 {
+        return None;
+    }
+    let major = libm::sqrt(major_sq);
+    let k = major / det_root;
+    Some([[k * r11, -k * r01], [-k * r01, k * r00]])
 }
 
 fn labelled(k: usize, pixel: PixelPoint, blob: usize) -> LabelledPoint {

@@ -342,6 +342,12 @@ impl Identifier {
         self.effector.refusals
     }
 
+    /// This frame's pair's signature and what became of it (diagnosis, see
+    /// [`EffectorMarks::last_signature`]).
+    pub fn effector_signature(&self) -> Option<(f64, f64, u8)> {
+        self.effector.last_signature
+    }
+
     /// This frame's pair of free blobs, if the pair stage saw one, with
     /// their lights against the yardstick (diagnosis).
     pub fn effector_pair(&self) -> Option<([PixelPoint; 2], [f64; 2])> {
@@ -1163,6 +1169,9 @@ impl Identifier {
             .disc
             .zip(self.reference_flux)
             .map(|(disc, flux)| flux / (disc.scale_px_per_m * disc.scale_px_per_m));
+        if let Some(disc) = self.disc {
+            self.effector.see_disc(disc.centre_px, disc.a_px, disc.b_px);
+        }
         let found = self
             .effector
             .identify(&candidates, effector_base_m, yardstick);

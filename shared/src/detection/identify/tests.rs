@@ -287,6 +287,163 @@ mod gripper {
     }
 }
 
+/// The search's sweep under a camera tilted 35 degrees: the gripper at one
+/// height, its marks across the arm, turning with the waist.
+mod tilted_sweep {
+    use super::super::effector::{level_normals, level_unwarp, EffectorCandidate, EffectorMarks};
+    use super::super::MarkLabel;
+
+    const F_PX: f64 = 290.0;
+    const CENTRE: [f64; 2] = [127.5, 127.5];
+    const DIAMETERS_M: [f64; 2] = [0.032, 0.02];
+    const REFERENCE_M: f64 = 0.024;
+    const YARDSTICK: f64 = 0.1;
+    const TILT_RAD: f64 = 35.0 * core::f64::consts::PI / 180.0;
+    /// The optical axis passes through here (base frame), from this far.
+    const AIM: [f64; 3] = [0.55, -0.05, 0.3];
+    const RANGE_M: f64 = 1.9;
+
+    /// Pinhole pixel and depth of base point `p`: the camera's x along base
+    /// X, its axis tilted from straight down towards base +Y.
+    fn camera(p: [f64; 3]) -> ([f64; 2], f64) {
+        let (s, c) = libm::sincos(TILT_RAD);
+        let eye = [AIM[0], AIM[1] - RANGE_M * s, AIM[2] + RANGE_M * c];
+        let d = [p[0] - eye[0], p[1] - eye[1], p[2] - eye[2]];
+        let x = d[0];
+        let y = -c * d[1] - s * d[2];
+        let z = s * d[1] - c * d[2];
+        ([F_PX * x / z + CENTRE[0], F_PX * y / z + CENTRE[1]], z)
+    }
+
+    /// The disc's image (a level circle of radius 0.38 m at height 0):
+    /// the reference's path `c + a cos + b sin`, as the track fits it.
+    fn disc_image() -> ([f64; 2], [f64; 2], [f64; 2]) {
+        let at = |x: f64, y: f64| camera([0.6 + x, 0.1 + y, 0.0]).0;
+        let l = 0.38;
+        let (px, nx, py, ny) = (at(l, 0.0), at(-l, 0.0), at(0.0, l), at(0.0, -l));
+        (
+            [
+                (px[0] + nx[0] + py[0] + ny[0]) / 4.0,
+                (px[1] + nx[1] + py[1] + ny[1]) / 4.0,
+            ],
+            [(px[0] - nx[0]) / 2.0, (px[1] - nx[1]) / 2.0],
+            [(py[0] - ny[0]) / 2.0, (py[1] - ny[1]) / 2.0],
+        )
+    }
+
+    /// The marks at sweep step `k`: the flange 0.6 m from the base axis,
+    /// the marks 8 cm either side of it across the arm, 3 cm on a frame.
+    fn marks(k: usize) -> [[f64; 3]; 2] {
+        let azimuth = -0.9 + 0.05 * k as f64;
+        let (s, c) = libm::sincos(azimuth);
+        let centre = [0.6 * c, 0.6 * s];
+        let across = [-0.08 * s, 0.08 * c];
+        [
+            [centre[0] + across[0], centre[1] + across[1], 0.3],
+            [centre[0] - across[0], centre[1] - across[1], 0.3],
+        ]
+    }
+
+    fn blob(base: [f64; 3], k: usize) -> EffectorCandidate {
+        let (pixel, depth) = camera(base);
+        let scale = F_PX / depth;
+        let area = (DIAMETERS_M[k] / REFERENCE_M).powi(2);
+        EffectorCandidate {
+            pixel,
+            flux: 0.8 * YARDSTICK * scale * scale * area,
+            free: true,
+        }
+    }
+
+    /// Labels given over the sweep, each checked to be on its own mark.
+    fn sweep(stage: &mut EffectorMarks) -> usize {
+        let mut labelled = 0;
+        for k in 0..40 {
+            let base = marks(k);
+            let blobs = [Some(blob(base[1], 1)), Some(blob(base[0], 0))];
+            let found = stage.identify(&blobs, &base, Some(YARDSTICK));
+            for (mark, point) in found.iter().enumerate() {
+                if let Some(point) = point {
+                    assert_eq!(point.label, MarkLabel::Effector(mark as u8));
+                    assert_eq!(point.blob, 1 - mark, "mark {mark} on the wrong blob");
+                    labelled += 1;
+                }
+            }
+        }
+        labelled
+    }
+
+    #[test]
+    fn the_unwarp_makes_a_level_circles_image_a_circle_at_its_major_scale() {
+        let (_, a, b) = disc_image();
+        let w = level_unwarp(a, b).unwrap();
+        let apply = |v: [f64; 2]| {
+            [
+                w[0][0] * v[0] + w[0][1] * v[1],
+                w[1][0] * v[0] + w[1][1] * v[1],
+            ]
+        };
+        let (wa, wb) = (apply(a), apply(b));
+        let norm = |v: [f64; 2]| libm::hypot(v[0], v[1]);
+        // Orthogonal, of equal length: a circle again.
+        assert!((wa[0] * wb[0] + wa[1] * wb[1]).abs() < 1e-9 * norm(wa) * norm(wb));
+        assert!((norm(wa) - norm(wb)).abs() < 1e-9 * norm(wa));
+        // The major axis keeps its length; the image was foreshortened
+        // (the axes differ by more than 10 %).
+        let major = norm(a).max(norm(b));
+        assert!(
+            (norm(wa) - major).abs() < 0.02 * major,
+            "{wa:?} {a:?} {b:?}"
+        );
+        assert!(norm(a).min(norm(b)) < 0.9 * major);
+        // A circle's image is left as it is; a line's says nothing.
+        let same = level_unwarp([30.0, 0.0], [0.0, 30.0]).unwrap();
+        assert!((same[0][0] - 1.0).abs() < 1e-12 && same[0][1].abs() < 1e-12);
+        assert!(level_unwarp([30.0, 10.0], [60.0, 20.0]).is_none());
+        assert!(level_unwarp([f64::NAN, 0.0], [0.0, 1.0]).is_none());
+    }
+
+    #[test]
+    fn the_level_planes_normal_is_one_of_the_two_the_discs_image_allows() {
+        let (c, a, b) = disc_image();
+        let [n0, n1] = level_normals(CENTRE, F_PX, c, a, b).unwrap();
+        // The base's up in the camera frame.
+        let (s, co) = libm::sincos(TILT_RAD);
+        let up = [0.0, -s, -co];
+        let angle = |n: [f64; 3]| libm::acos((n[0] * up[0] + n[1] * up[1] + n[2] * up[2]).min(1.0));
+        let (near, far) = (angle(n0).min(angle(n1)), angle(n0).max(angle(n1)));
+        // Within a degree (the affine image of a 0.76 m circle), and the
+        // other tilted the other way about the disc's ray.
+        assert!(near < 1f64.to_radians(), "{near}");
+        assert!(far > 20f64.to_radians(), "{far}");
+        for n in [n0, n1] {
+            assert!((n[0] * n[0] + n[1] * n[1] + n[2] * n[2] - 1.0).abs() < 1e-9);
+            assert!(n[2] < 0.0, "towards the camera: {n:?}");
+        }
+        // Square to the plane: both straight at the camera.
+        let [m0, m1] = level_normals(CENTRE, F_PX, CENTRE, [40.0, 0.0], [0.0, 40.0]).unwrap();
+        assert!(m0[2] < -0.999999 && m1[2] < -0.999999, "{m0:?} {m1:?}");
+        assert!(level_normals(CENTRE, F_PX, c, [30.0, 10.0], [60.0, 20.0]).is_none());
+        assert!(level_normals(CENTRE, 0.0, c, a, b).is_none());
+    }
+
+    #[test]
+    fn a_sweep_at_one_height_under_a_tilted_camera_is_labelled_once_the_tilt_is_undone() {
+        let (c, a, b) = disc_image();
+        let mut seen_level = EffectorMarks::new(DIAMETERS_M, REFERENCE_M, CENTRE, F_PX);
+        seen_level.see_disc(c, a, b);
+        let with_tilt_undone = sweep(&mut seen_level);
+        let mut as_if_square = EffectorMarks::new(DIAMETERS_M, REFERENCE_M, CENTRE, F_PX);
+        let as_if_square = sweep(&mut as_if_square);
+        // Every frame once two pairs confirm (the third on), over 2 rad of
+        // the waist (1.2 m); as if square to the plane, the pair's depth
+        // (from its separation) is off with its direction and the pairs do
+        // not move rigidly after the fifth frame.
+        assert_eq!(with_tilt_undone, 2 * 38);
+        assert!(as_if_square < with_tilt_undone / 4, "{as_if_square}");
+    }
+}
+
 /// The disc stage on a synthetic camera: a disc seen from above at 200 px
 /// per metre (foreshortened to 0.9 along the image's y), its centre imaged
 /// at (128, 128), no lens distortion. Marks are given the light the
