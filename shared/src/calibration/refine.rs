@@ -9,11 +9,15 @@
 //! frames: the normal equations are kept as the arrowhead's blocks and solved by the
 //! Schur complement ([`super::normal_blocks`]), 2.8 KiB instead of a dense 34x34 matrix.
 
+use nalgebra::Vector2;
+
 use super::config::CalibrationConfig;
 use super::error::CalibrationError;
 use super::folded::FoldedInformation;
 use super::frame_store::FrameView;
-use super::model::{for_each_observation, WorkcellModel};
+use super::model::{
+    for_each_observation, JacobianScalar, Observation, ResidualJacobian, WorkcellModel,
+};
 use super::normal_blocks::{
     Freedom, Increment, MarginalCovariance, NormalBlocks, NormalRun, RUN_POINTS,
 };
@@ -190,6 +194,25 @@ impl PassSums {
         }
         weight
     }
+
+    /// One point of a normal-equation pass: counted here, and its residual,
+    /// Jacobian (in `T`) and weight when it adds to the normal equations.
+    fn weighed<T: JacobianScalar>(
+        &mut self,
+        loss: &Loss,
+        problem: &Problem<'_>,
+        model: &WorkcellModel,
+        observation: &Observation,
+    ) -> Option<(Vector2<f64>, ResidualJacobian<T>, f64)> {
+        let Some((residual, jacobian)) =
+            model.residual_with_jacobian_in::<T>(&problem.pinhole, observation)
+        else {
+            self.add(loss, None);
+            return None;
+        };
+        let weight = self.add(loss, Some(residual.norm_squared()));
+        (weight != 0.0).then_some((residual, jacobian, weight))
+    }
 }
 
 /// The normal equations at `model` into `blocks`, and what the pass sums
@@ -212,17 +235,11 @@ fn normal_equations(
                 problem.feature_count,
                 problem.reference_radius_m,
                 |observation| {
-                    let Some((residual, jacobian)) =
-                        model.residual_with_jacobian(&problem.pinhole, observation)
-                    else {
-                        pass.add(loss, None);
-                        return;
-                    };
-                    let weight = pass.add(loss, Some(residual.norm_squared()));
-                    if weight == 0.0 {
-                        return;
+                    if let Some((residual, jacobian, weight)) =
+                        pass.weighed::<f64>(loss, problem, model, observation)
+                    {
+                        blocks.accumulate(&jacobian.camera, &jacobian.other, &residual, weight);
                     }
-                    blocks.accumulate(&jacobian.camera, &jacobian.other, &residual, weight);
                 },
             );
             pass
@@ -253,16 +270,11 @@ fn mixed_normal_equations(
         problem.feature_count,
         problem.reference_radius_m,
         |observation| {
-            let Some((residual, jacobian)) =
-                model.residual_with_jacobian_in::<f32>(&problem.pinhole, observation)
+            let Some((residual, jacobian, weight)) =
+                pass.weighed::<f32>(loss, problem, model, observation)
             else {
-                pass.add(loss, None);
                 return;
             };
-            let weight = pass.add(loss, Some(residual.norm_squared()));
-            if weight == 0.0 {
-                return;
-            }
             run.accumulate(
                 &jacobian.camera,
                 &jacobian.other,

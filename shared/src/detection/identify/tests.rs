@@ -125,12 +125,12 @@ mod gripper {
     use super::super::effector::{EffectorCandidate, EffectorMarks};
     use super::super::MarkLabel;
 
-    const F_PX: f64 = 290.0;
-    const CENTRE: [f64; 2] = [127.5, 127.5];
-    const DIAMETERS_M: [f64; 2] = [0.032, 0.02];
-    const REFERENCE_M: f64 = 0.024;
+    pub(super) const F_PX: f64 = 290.0;
+    pub(super) const CENTRE: [f64; 2] = [127.5, 127.5];
+    pub(super) const DIAMETERS_M: [f64; 2] = [0.032, 0.02];
+    pub(super) const REFERENCE_M: f64 = 0.024;
     /// The reference's light over the disc's scale squared.
-    const YARDSTICK: f64 = 0.1;
+    pub(super) const YARDSTICK: f64 = 0.1;
 
     fn camera(p: [f64; 3]) -> ([f64; 2], f64) {
         let (x, y, z) = (p[0] - 0.6, -(p[1] + 0.1), 2.2 - p[2]);
@@ -154,10 +154,10 @@ mod gripper {
         ]
     }
 
-    /// Mark `k`'s blob: its light as a disc mark of its size at its depth
-    /// would send, times 0.8 (what the renderer's marks measure).
-    fn blob(base: [f64; 3], k: usize) -> EffectorCandidate {
-        let (pixel, depth) = camera(base);
+    /// Mark `k`'s blob at `pixel`, `depth` from the camera: its light as a
+    /// disc mark of its size at that depth would send, times 0.8 (what the
+    /// renderer's marks measure).
+    pub(super) fn mark_blob(pixel: [f64; 2], depth: f64, k: usize) -> EffectorCandidate {
         let scale = F_PX / depth;
         let area = (DIAMETERS_M[k] / REFERENCE_M).powi(2);
         EffectorCandidate {
@@ -165,6 +165,11 @@ mod gripper {
             flux: 0.8 * YARDSTICK * scale * scale * area,
             free: true,
         }
+    }
+
+    fn blob(base: [f64; 3], k: usize) -> EffectorCandidate {
+        let (pixel, depth) = camera(base);
+        mark_blob(pixel, depth, k)
     }
 
     fn stage() -> EffectorMarks {
@@ -293,11 +298,8 @@ mod tilted_sweep {
     use super::super::effector::{level_normals, level_unwarp, EffectorCandidate, EffectorMarks};
     use super::super::MarkLabel;
 
-    const F_PX: f64 = 290.0;
-    const CENTRE: [f64; 2] = [127.5, 127.5];
-    const DIAMETERS_M: [f64; 2] = [0.032, 0.02];
-    const REFERENCE_M: f64 = 0.024;
-    const YARDSTICK: f64 = 0.1;
+    use super::gripper::{mark_blob, CENTRE, DIAMETERS_M, F_PX, REFERENCE_M, YARDSTICK};
+
     const TILT_RAD: f64 = 35.0 * core::f64::consts::PI / 180.0;
     /// The optical axis passes through here (base frame), from this far.
     const AIM: [f64; 3] = [0.55, -0.05, 0.3];
@@ -346,13 +348,7 @@ mod tilted_sweep {
 
     fn blob(base: [f64; 3], k: usize) -> EffectorCandidate {
         let (pixel, depth) = camera(base);
-        let scale = F_PX / depth;
-        let area = (DIAMETERS_M[k] / REFERENCE_M).powi(2);
-        EffectorCandidate {
-            pixel,
-            flux: 0.8 * YARDSTICK * scale * scale * area,
-            free: true,
-        }
+        mark_blob(pixel, depth, k)
     }
 
     /// Labels given over the sweep, each checked to be on its own mark.
