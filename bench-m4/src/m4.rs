@@ -77,6 +77,10 @@ fn run() -> Option<()> {
     if option_env!("BENCH_M4_ONLY") == Some("detect") {
         return detect_frame(&timer);
     }
+    // `BENCH_M4_ONLY=estimate`: only the pick calibrator's two estimates.
+    if option_env!("BENCH_M4_ONLY") == Some("estimate") {
+        return super::estimate::estimates(&timer);
+    }
     // `BENCH_M4_ONLY=interlock`: only the drive interlock's period.
     if option_env!("BENCH_M4_ONLY") == Some("interlock") {
         interlock_period(&timer);
@@ -205,6 +209,7 @@ fn run() -> Option<()> {
 
     pick_tick(&timer, &model, &q);
     detect_frame(&timer)?;
+    super::estimate::estimates(&timer)?;
 
     let x = 0.7_f32;
     let math = [

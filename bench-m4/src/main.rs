@@ -16,6 +16,8 @@ fn main() {
 }
 
 #[cfg(target_os = "none")]
+mod estimate;
+#[cfg(target_os = "none")]
 mod m4;
 #[cfg(target_os = "none")]
 mod timer;
