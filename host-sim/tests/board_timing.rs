@@ -41,9 +41,11 @@ fn results_as_late_as_the_m4f_delivers_them_still_pick_the_part_safely() {
             report.late_results,
             report.handoffs_dropped
         );
-        // Both estimates came late, and the first plan (0.5 s against its
-        // 0.25 s budget: dropped, then planned again with a longer lead).
-        assert!(report.late_results >= 3, "{name} seed {seed}: {report:?}");
+        // The final estimate came late (1.7 s against its 1 s budget; the
+        // preliminary one, 0.86 s, does not), and the first plan (0.5 s
+        // against its 0.25 s budget: dropped, then planned again with a
+        // longer lead).
+        assert!(report.late_results >= 2, "{name} seed {seed}: {report:?}");
         assert_eq!(run.result, PickResult::Success, "{name} seed {seed}");
         let violations = run.safety.violations();
         assert!(violations.is_empty(), "{name} seed {seed}: {violations:?}");

@@ -46,12 +46,14 @@ pub struct BoardTiming {
 /// without the handlers, 196 and 370 million with iterations that stop at a
 /// chi-square progress of 1e-6 and each phase's starting cost taken from its
 /// first pass, 194 and 362 million with the fit's statistics taken from the
-/// covariance's pass.
-pub const MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS: u64 = 193_646_920;
+/// covariance's pass, 62 and 121 million with the start's homography from
+/// moment sums, passes over the points made in f32 where no cost is compared,
+/// and the start's robust loops stopped once their inlier sets repeat.
+pub const MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS: u64 = 61_672_120;
 /// See [`MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS`].
-pub const MEASURED_ESTIMATE_FINAL_INSTRUCTIONS: u64 = 361_723_800;
+pub const MEASURED_ESTIMATE_FINAL_INSTRUCTIONS: u64 = 120_687_520;
 /// See [`MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS`].
-pub const MEASURED_PLAN_INSTRUCTIONS: u64 = 60_724_200;
+pub const MEASURED_PLAN_INSTRUCTIONS: u64 = 61_099_240;
 
 /// Cycles an instruction, the pick period's on the cycle model
 /// (docs/performance.md, "Cycles on the STM32F407"): 2.03. The jobs' soft
@@ -125,8 +127,8 @@ mod tests {
             q_now: nalgebra::SVector::zeros(),
         };
         let seconds = timing.job_us(&final_estimate) as f64 * 1e-6;
-        // 362 M instructions x 2.03 / 168 MHz / 0.87 of the core: 5.01 s.
-        assert!((4.7..5.5).contains(&seconds), "{seconds} s");
+        // 121 M instructions x 2.03 / 168 MHz / 0.87 of the core: 1.68 s.
+        assert!((1.5..1.85).contains(&seconds), "{seconds} s");
         assert!(timing.describe().contains("168 MHz"));
     }
 }

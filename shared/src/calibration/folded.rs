@@ -21,7 +21,8 @@
 //! is counted and adds nothing.
 
 use super::model::{
-    for_each_frame_observation, for_each_sighting_observation, Observation, WorkcellModel,
+    for_each_frame_observation, for_each_sighting_observation, Observation, Projector,
+    WorkcellModel,
 };
 use super::normal_blocks::{Increment, NormalBlocks};
 use super::pinhole::Pinhole;
@@ -128,22 +129,23 @@ impl FoldedInformation {
         reference_radius_m: f64,
     ) {
         self.frames = self.frames.saturating_add(1);
+        let projector = Projector::<f64>::new(&self.at, pinhole);
         for_each_frame_observation(frame, feature_count, reference_radius_m, |observation| {
-            self.fold_observation(pinhole, observation);
+            self.fold_observation(&projector, observation);
         });
     }
 
     /// Folds one end-effector sighting (the caller checked [`Self::base_estimated`]).
     pub fn fold_sighting(&mut self, pinhole: &Pinhole, sighting: &EffectorRecord) {
         self.sightings = self.sightings.saturating_add(1);
+        let projector = Projector::<f64>::new(&self.at, pinhole);
         for_each_sighting_observation(sighting, |observation| {
-            self.fold_observation(pinhole, observation);
+            self.fold_observation(&projector, observation);
         });
     }
 
-    fn fold_observation(&mut self, pinhole: &Pinhole, observation: &Observation) {
-        let Some((residual, jacobian)) = self.at.residual_with_jacobian(pinhole, observation)
-        else {
+    fn fold_observation(&mut self, projector: &Projector<f64>, observation: &Observation) {
+        let Some((residual, jacobian)) = projector.residual_with_jacobian(observation) else {
             self.outliers = self.outliers.saturating_add(1);
             return;
         };

@@ -5,7 +5,7 @@
 use nalgebra::{Matrix2x3, Matrix3, RealField, Rotation3, SMatrix, Vector2, Vector3};
 
 use super::frame_store::FrameView;
-use super::pinhole::Pinhole;
+use super::pinhole::{projection_jacobian, Pinhole, MIN_DEPTH_M};
 use super::records::{to_vector, EffectorRecord, FrameRecord};
 use super::uncertainty::GraspGeometry;
 use crate::observation::MAX_PART_FEATURES;
@@ -139,8 +139,12 @@ pub fn for_each_frame_observation(
             target: Target::KnownDisc(Vector3::zeros()),
         });
     }
+    if frame.reference.is_none() && frame.part.is_none() {
+        return;
+    }
+    // One sincos a frame, for the reference point and the part alike.
+    let (s, c) = libm::sincos(frame.theta);
     if let Some(reference) = frame.reference {
-        let (s, c) = libm::sincos(frame.theta);
         let p_disc = Vector3::new(reference_radius_m * c, reference_radius_m * s, 0.0);
         visit(&Observation {
             pixel: to_vector(reference),
@@ -148,7 +152,6 @@ pub fn for_each_frame_observation(
         });
     }
     if let Some(part) = frame.part {
-        let (s, c) = libm::sincos(frame.theta);
         for (index, pixel) in part.iter().take(feature_count).enumerate() {
             visit(&Observation {
                 pixel: to_vector(*pixel),
@@ -192,88 +195,10 @@ impl WorkcellModel {
         }
     }
 
-    /// Disc-frame coordinates of the observed point under this model.
-    pub fn point_disc(&self, target: &Target) -> Vector3<f64> {
-        match *target {
-            Target::KnownDisc(p) => p,
-            Target::Feature {
-                index,
-                cos_sin: [c, s],
-            } => {
-                let p = self
-                    .features_rotating
-                    .get(index)
-                    .copied()
-                    .unwrap_or_default();
-                Vector3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z)
-            }
-            Target::Effector(p_base) => {
-                rotation_z(-self.base_yaw) * (p_base - self.base_translation)
-            }
-        }
-    }
-
-    /// Predicted minus measured pixel, or `None` when the point is behind the camera.
+    /// Predicted minus measured pixel, or `None` when the point is behind the
+    /// camera (one point; a pass over many makes one [`Projector`]).
     pub fn residual(&self, pinhole: &Pinhole, observation: &Observation) -> Option<Vector2<f64>> {
-        let p_disc = self.point_disc(&observation.target);
-        let p_camera = self.disc_from_camera.inverse() * (p_disc - self.camera_centre_disc);
-        pinhole
-            .project(&p_camera)
-            .map(|pixel| pixel - observation.pixel)
-    }
-
-    /// The residual and its Jacobian for the increments of [`WorkcellModel::retract`].
-    pub fn residual_with_jacobian(
-        &self,
-        pinhole: &Pinhole,
-        observation: &Observation,
-    ) -> Option<(Vector2<f64>, ResidualJacobian)> {
-        self.residual_with_jacobian_in::<f64>(pinhole, observation)
-    }
-
-    /// The residual (f64, as [`WorkcellModel::residual`]) and its Jacobian in `T`:
-    /// the Jacobian's entries are rounded to `T` from the f64 point in the camera
-    /// frame, so in f32 each is good to about 1e-7 of itself, what a Gauss-Newton
-    /// matrix needs many times over; the residual, where the fit's accuracy lies,
-    /// stays f64.
-    pub fn residual_with_jacobian_in<T: JacobianScalar>(
-        &self,
-        pinhole: &Pinhole,
-        observation: &Observation,
-    ) -> Option<(Vector2<f64>, ResidualJacobian<T>)> {
-        let p_disc = self.point_disc(&observation.target);
-        let camera_from_disc = self.disc_from_camera.inverse();
-        let p_camera = camera_from_disc * (p_disc - self.camera_centre_disc);
-        let pixel = pinhole.project(&p_camera)?;
-        let to_t = |value: f64| T::nearest(value);
-        let projection = pinhole.projection_jacobian(&p_camera.map(to_t));
-        // Right-perturbed rotation R Exp(delta): p_camera -> p_camera - delta x p_camera.
-        let d_rotation = projection * p_camera.map(to_t).cross_matrix();
-        let d_point_disc = projection * camera_from_disc.matrix().map(to_t);
-        let d_centre = -d_point_disc;
-        let mut camera = SMatrix::<T, 2, 6>::zeros();
-        camera.fixed_view_mut::<2, 3>(0, 0).copy_from(&d_rotation);
-        camera.fixed_view_mut::<2, 3>(0, 3).copy_from(&d_centre);
-        let other = match observation.target {
-            Target::KnownDisc(_) => OtherBlock::None,
-            Target::Feature { index, cos_sin } => OtherBlock::Feature {
-                index,
-                jacobian: d_point_disc * planar_rotation(cos_sin).map(to_t),
-            },
-            Target::Effector(_) => {
-                // p_disc = Rz(-yaw) (p_base - t): d/d yaw = (p_disc.y, -p_disc.x, 0).
-                let d_yaw = d_point_disc * Vector3::new(p_disc.y, -p_disc.x, 0.0).map(to_t);
-                let d_translation = -(d_point_disc * rotation_z(-self.base_yaw).map(to_t));
-                let mut block = SMatrix::<T, 2, 4>::zeros();
-                block.fixed_view_mut::<2, 1>(0, 0).copy_from(&d_yaw);
-                block.fixed_view_mut::<2, 3>(0, 1).copy_from(&d_translation);
-                OtherBlock::Base(block)
-            }
-        };
-        Some((
-            pixel - observation.pixel,
-            ResidualJacobian { camera, other },
-        ))
+        Projector::<f64>::new(self, pinhole).residual(observation)
     }
 
     /// The increment that [`WorkcellModel::retract`] applies to `from` to reach this
@@ -321,6 +246,123 @@ impl WorkcellModel {
         next.base_yaw += increment.fixed_view::<1, 1>(BASE_OFFSET, 0).x;
         next.base_translation += increment.fixed_view::<3, 1>(BASE_OFFSET + 1, 0);
         next
+    }
+}
+
+/// A [`WorkcellModel`] made ready for a pass over many points, in the
+/// scalar `T` the pass computes in: the rotations every residual needs are
+/// computed once (each point used to take its own inverse camera rotation
+/// and, for a sighting, a software sincos of the base yaw: thousands of
+/// instructions on the Cortex-M4F). In f64 it is the model; in f32 every
+/// residual is good to some 3e-5 px (a pixel coordinate of 256 holds 1.5e-5
+/// px in f32), a ten-thousandth of the pixel noise: what a Gauss-Newton
+/// step needs, though not what a cost comparison of two nearby models does
+/// (see `refine`'s passes).
+#[derive(Debug, Clone, Copy)]
+pub struct Projector<T: JacobianScalar> {
+    f_px: T,
+    centre_px: Vector2<T>,
+    camera_from_disc: Matrix3<T>,
+    camera_centre_disc: Vector3<T>,
+    features_rotating: [Vector3<T>; MAX_PART_FEATURES],
+    base_translation: Vector3<T>,
+    /// `Rz(-base_yaw)`.
+    disc_from_base: Matrix3<T>,
+}
+
+impl<T: JacobianScalar> Projector<T> {
+    /// `model` seen through `pinhole`, in `T`.
+    pub fn new(model: &WorkcellModel, pinhole: &Pinhole) -> Self {
+        let to_t = |value: f64| T::nearest(value);
+        Self {
+            f_px: to_t(pinhole.f_px),
+            centre_px: Vector2::new(to_t(pinhole.cx), to_t(pinhole.cy)),
+            camera_from_disc: model.disc_from_camera.inverse().matrix().map(to_t),
+            camera_centre_disc: model.camera_centre_disc.map(to_t),
+            features_rotating: model.features_rotating.map(|p| p.map(to_t)),
+            base_translation: model.base_translation.map(to_t),
+            disc_from_base: rotation_z(-model.base_yaw).map(to_t),
+        }
+    }
+
+    /// Disc-frame coordinates of the observed point under the model.
+    pub fn point_disc(&self, target: &Target) -> Vector3<T> {
+        let to_t = |value: f64| T::nearest(value);
+        match *target {
+            Target::KnownDisc(p) => p.map(to_t),
+            Target::Feature {
+                index,
+                cos_sin: [c, s],
+            } => {
+                let p = self
+                    .features_rotating
+                    .get(index)
+                    .copied()
+                    .unwrap_or_else(Vector3::zeros);
+                let (c, s) = (to_t(c), to_t(s));
+                Vector3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z)
+            }
+            Target::Effector(p_base) => {
+                self.disc_from_base * (p_base.map(to_t) - self.base_translation)
+            }
+        }
+    }
+
+    /// The point in the camera frame and its pixel, or `None` behind the camera.
+    fn image(&self, p_disc: &Vector3<T>) -> Option<(Vector3<T>, Vector2<T>)> {
+        let p_camera = self.camera_from_disc * (p_disc - self.camera_centre_disc);
+        if p_camera.z <= T::nearest(MIN_DEPTH_M) {
+            return None;
+        }
+        let pixel = Vector2::new(
+            self.f_px * p_camera.x / p_camera.z,
+            self.f_px * p_camera.y / p_camera.z,
+        ) + self.centre_px;
+        Some((p_camera, pixel))
+    }
+
+    /// Predicted minus measured pixel, or `None` when the point is behind the camera.
+    pub fn residual(&self, observation: &Observation) -> Option<Vector2<T>> {
+        let p_disc = self.point_disc(&observation.target);
+        let (_, pixel) = self.image(&p_disc)?;
+        Some(pixel - observation.pixel.map(|v| T::nearest(v)))
+    }
+
+    /// The residual and its Jacobian for the increments of [`WorkcellModel::retract`].
+    pub fn residual_with_jacobian(
+        &self,
+        observation: &Observation,
+    ) -> Option<(Vector2<T>, ResidualJacobian<T>)> {
+        let p_disc = self.point_disc(&observation.target);
+        let (p_camera, pixel) = self.image(&p_disc)?;
+        let projection = projection_jacobian(self.f_px, &p_camera);
+        // Right-perturbed rotation R Exp(delta): p_camera -> p_camera - delta x p_camera.
+        let d_rotation = projection * p_camera.cross_matrix();
+        let d_point_disc = projection * self.camera_from_disc;
+        let d_centre = -d_point_disc;
+        let mut camera = SMatrix::<T, 2, 6>::zeros();
+        camera.fixed_view_mut::<2, 3>(0, 0).copy_from(&d_rotation);
+        camera.fixed_view_mut::<2, 3>(0, 3).copy_from(&d_centre);
+        let other = match observation.target {
+            Target::KnownDisc(_) => OtherBlock::None,
+            Target::Feature { index, cos_sin } => OtherBlock::Feature {
+                index,
+                jacobian: d_point_disc * planar_rotation(cos_sin).map(|v| T::nearest(v)),
+            },
+            Target::Effector(_) => {
+                // p_disc = Rz(-yaw) (p_base - t): d/d yaw = (p_disc.y, -p_disc.x, 0).
+                let d_yaw = d_point_disc * Vector3::new(p_disc.y, -p_disc.x, T::zero());
+                let d_translation = -(d_point_disc * self.disc_from_base);
+                let mut block = SMatrix::<T, 2, 4>::zeros();
+                block.fixed_view_mut::<2, 1>(0, 0).copy_from(&d_yaw);
+                block.fixed_view_mut::<2, 3>(0, 1).copy_from(&d_translation);
+                OtherBlock::Base(block)
+            }
+        };
+        Some((
+            pixel - observation.pixel.map(|v| T::nearest(v)),
+            ResidualJacobian { camera, other },
+        ))
     }
 }
 

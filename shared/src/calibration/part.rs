@@ -29,11 +29,31 @@ impl VirtualGeometry {
     /// equivalent for exact data, less noisy, and works in frames where the reference point
     /// was not detected.
     pub fn affine_line(&self, theta: f64, m_virtual: Vector2<f64>) -> (Vector2<f64>, Vector2<f64>) {
+        self.affine_line_through(&Self::rotating_map(&self.reflection(), theta), m_virtual)
+    }
+
+    /// `V(gamma)`, the reflection about the disc centre between the virtual
+    /// image's axes and the disc's: the same for every frame.
+    pub fn reflection(&self) -> Matrix2<f64> {
         let (s, c) = libm::sincos(self.gamma);
-        let reflection = Matrix2::new(c, s, s, -c);
+        Matrix2::new(c, s, s, -c)
+    }
+
+    /// `Rz(-theta) V(gamma)`, the map of Eq 7 from the virtual image to the
+    /// rotating frame for a frame seen at `theta`: one a frame, shared by all
+    /// its features (a software sincos is thousands of instructions on the
+    /// Cortex-M4F).
+    pub fn rotating_map(reflection: &Matrix2<f64>, theta: f64) -> Matrix2<f64> {
         let (st, ct) = libm::sincos(theta);
-        let rotating_from_disc = Matrix2::new(ct, st, -st, ct);
-        let map = rotating_from_disc * reflection;
+        Matrix2::new(ct, st, -st, ct) * reflection
+    }
+
+    /// [`VirtualGeometry::affine_line`] with the frame's [`VirtualGeometry::rotating_map`].
+    pub fn affine_line_through(
+        &self,
+        map: &Matrix2<f64>,
+        m_virtual: Vector2<f64>,
+    ) -> (Vector2<f64>, Vector2<f64>) {
         let h = self.rotation.height_m;
         let a = map * (m_virtual - self.rotation.centre_virtual) * h;
         let b = map * m_virtual;
@@ -121,8 +141,9 @@ pub fn intersect_two_lines(
     Ok(Vector3::new(xy.x, xy.y, h))
 }
 
-/// Distance of a point's xy from one frame's line at the point's height (m).
-pub fn line_residual(point: &Vector3<f64>, line: (Vector2<f64>, Vector2<f64>)) -> f64 {
+/// Squared distance (m^2) of a point's xy from one frame's line at the point's
+/// height: what a gate compares, without the root.
+pub fn line_miss_squared(point: &Vector3<f64>, line: (Vector2<f64>, Vector2<f64>)) -> f64 {
     let (a, b) = line;
-    (Vector2::new(point.x, point.y) + b * point.z - a).norm()
+    (Vector2::new(point.x, point.y) + b * point.z - a).norm_squared()
 }

@@ -7,7 +7,7 @@ use super::model::JacobianScalar;
 use crate::observation::CameraIntrinsics;
 
 /// Closest a point may come to the camera plane (m) and still be projected.
-const MIN_DEPTH_M: f64 = 1e-6;
+pub(super) const MIN_DEPTH_M: f64 = 1e-6;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 /// The contract's camera as the calibration computes with it.
@@ -48,20 +48,21 @@ impl Pinhole {
             self.f_px * p_camera.y / p_camera.z + self.cy,
         ))
     }
+}
 
-    /// The projection's Jacobian with respect to the camera-frame point, in the
-    /// point's scalar (f64, or f32 for the bundle adjustment's normal equations).
-    pub fn projection_jacobian<T: JacobianScalar>(&self, p_camera: &Vector3<T>) -> Matrix2x3<T> {
-        let inverse_z = T::one() / p_camera.z;
-        let scale = T::nearest(self.f_px) * inverse_z;
-        let zero = T::zero();
-        Matrix2x3::new(
-            scale,
-            zero,
-            -scale * p_camera.x * inverse_z,
-            zero,
-            scale,
-            -scale * p_camera.y * inverse_z,
-        )
-    }
+/// The projection's Jacobian with respect to the camera-frame point, for a
+/// focal length `f_px`, in the point's scalar (f64, or f32 for the bundle
+/// adjustment's passes over the points).
+pub fn projection_jacobian<T: JacobianScalar>(f_px: T, p_camera: &Vector3<T>) -> Matrix2x3<T> {
+    let inverse_z = T::one() / p_camera.z;
+    let scale = f_px * inverse_z;
+    let zero = T::zero();
+    Matrix2x3::new(
+        scale,
+        zero,
+        -scale * p_camera.x * inverse_z,
+        zero,
+        scale,
+        -scale * p_camera.y * inverse_z,
+    )
 }

@@ -9,15 +9,11 @@
 //! frames: the normal equations are kept as the arrowhead's blocks and solved by the
 //! Schur complement ([`super::normal_blocks`]), 2.8 KiB instead of a dense 34x34 matrix.
 
-use nalgebra::Vector2;
-
 use super::config::CalibrationConfig;
 use super::error::CalibrationError;
 use super::folded::FoldedInformation;
 use super::frame_store::FrameView;
-use super::model::{
-    for_each_observation, JacobianScalar, Observation, ResidualJacobian, WorkcellModel,
-};
+use super::model::{for_each_observation, Projector, WorkcellModel};
 use super::normal_blocks::{
     Freedom, Increment, MarginalCovariance, NormalBlocks, NormalRun, RUN_POINTS,
 };
@@ -125,13 +121,14 @@ pub struct Refined {
 
 fn total_cost(problem: &Problem<'_>, model: &WorkcellModel, loss: &Loss) -> f64 {
     let mut cost = 0.0;
+    let projector = Projector::<f64>::new(model, &problem.pinhole);
     for_each_observation(
         problem.frames,
         problem.effectors,
         problem.feature_count,
         problem.reference_radius_m,
         |observation| {
-            cost += match model.residual(&problem.pinhole, observation) {
+            cost += match projector.residual(observation) {
                 Some(r) => loss.cost(r.norm_squared()),
                 None => loss.behind_camera_cost(),
             };
@@ -194,50 +191,37 @@ impl PassSums {
         }
         weight
     }
-
-    /// One point of a normal-equation pass: counted here, and its residual,
-    /// Jacobian (in `T`) and weight when it adds to the normal equations.
-    fn weighed<T: JacobianScalar>(
-        &mut self,
-        loss: &Loss,
-        problem: &Problem<'_>,
-        model: &WorkcellModel,
-        observation: &Observation,
-    ) -> Option<(Vector2<f64>, ResidualJacobian<T>, f64)> {
-        let Some((residual, jacobian)) =
-            model.residual_with_jacobian_in::<T>(&problem.pinhole, observation)
-        else {
-            self.add(loss, None);
-            return None;
-        };
-        let weight = self.add(loss, Some(residual.norm_squared()));
-        (weight != 0.0).then_some((residual, jacobian, weight))
-    }
 }
 
 /// The normal equations at `model` into `blocks`, and what the pass sums
 /// beside them (the folded observations' cost included, not their points).
+/// With `exact_cost` the pass's cost is the f64 [`total_cost`]'s (the first
+/// pass of a phase, whose cost the phase compares its steps with); without,
+/// a [`Sums::Mixed`] pass computes every point in f32 and its cost is good
+/// only for statistics (RMS, outliers).
 fn normal_equations(
     problem: &Problem<'_>,
     model: &WorkcellModel,
     loss: &Loss,
     sums: Sums,
+    exact_cost: bool,
     blocks: &mut NormalBlocks,
 ) -> PassSums {
     *blocks = NormalBlocks::zeros();
     let mut pass = match sums {
-        Sums::Mixed => mixed_normal_equations(problem, model, loss, blocks),
+        Sums::Mixed => mixed_normal_equations(problem, model, loss, exact_cost, blocks),
         Sums::Double => {
             let mut pass = PassSums::default();
+            let projector = Projector::<f64>::new(model, &problem.pinhole);
             for_each_observation(
                 problem.frames,
                 problem.effectors,
                 problem.feature_count,
                 problem.reference_radius_m,
                 |observation| {
-                    if let Some((residual, jacobian, weight)) =
-                        pass.weighed::<f64>(loss, problem, model, observation)
-                    {
+                    let point = projector.residual_with_jacobian(observation);
+                    let weight = pass.add(loss, point.map(|(r, _)| r.norm_squared()));
+                    if let Some((residual, jacobian)) = point.filter(|_| weight != 0.0) {
                         blocks.accumulate(&jacobian.camera, &jacobian.other, &residual, weight);
                     }
                 },
@@ -252,35 +236,40 @@ fn normal_equations(
     pass
 }
 
-/// [`Sums::Mixed`]: the points' Jacobians and products in f32, summed over
-/// runs of [`RUN_POINTS`] in f32 and the runs in f64.
+/// [`Sums::Mixed`]: the points' residuals, Jacobians and products in f32
+/// (with `exact_cost` the residuals the cost is summed from in f64 as well),
+/// summed over runs of [`RUN_POINTS`] in f32 and the runs in f64. The f32
+/// residuals move the step by what some 3e-5 px on every point would: the
+/// iterations still stop where the f64 cost does (its comparisons decide).
 fn mixed_normal_equations(
     problem: &Problem<'_>,
     model: &WorkcellModel,
     loss: &Loss,
+    exact_cost: bool,
     blocks: &mut NormalBlocks,
 ) -> PassSums {
     let mut run = NormalRun::zeros();
     let mut in_run = 0u32;
     let mut pass = PassSums::default();
     let features = problem.feature_count;
+    let single = Projector::<f32>::new(model, &problem.pinhole);
+    let double = exact_cost.then(|| Projector::<f64>::new(model, &problem.pinhole));
     for_each_observation(
         problem.frames,
         problem.effectors,
         problem.feature_count,
         problem.reference_radius_m,
         |observation| {
-            let Some((residual, jacobian, weight)) =
-                pass.weighed::<f32>(loss, problem, model, observation)
-            else {
+            let point = single.residual_with_jacobian(observation);
+            let squared = match &double {
+                Some(double) => double.residual(observation).map(|r| r.norm_squared()),
+                None => point.map(|(r, _)| f64::from(r.norm_squared())),
+            };
+            let weight = pass.add(loss, squared);
+            let Some((residual, jacobian)) = point.filter(|_| weight != 0.0) else {
                 return;
             };
-            run.accumulate(
-                &jacobian.camera,
-                &jacobian.other,
-                &residual.map(|v| v as f32),
-                weight as f32,
-            );
+            run.accumulate(&jacobian.camera, &jacobian.other, &residual, weight as f32);
             in_run += 1;
             if in_run == RUN_POINTS {
                 blocks.add_run(&mut run, features);
@@ -338,13 +327,16 @@ fn minimise(
     let freedom = freedom(problem);
     let mut blocks = NormalBlocks::zeros();
     for iteration in 0..max_iterations {
-        let mut at_model = normal_equations(problem, &model, loss, *sums, &mut blocks).cost;
-        if iteration == 0
+        // Only the first pass's cost is read: later ones come from the
+        // accepted candidates' f64 evaluations.
+        let first = iteration == 0;
+        let mut at_model = normal_equations(problem, &model, loss, *sums, first, &mut blocks).cost;
+        if first
             && *sums == Sums::Mixed
             && blocks.weakest_pivot_ratio(&freedom) < MIN_MIXED_PIVOT_RATIO
         {
             *sums = Sums::Double;
-            at_model = normal_equations(problem, &model, loss, *sums, &mut blocks).cost;
+            at_model = normal_equations(problem, &model, loss, *sums, first, &mut blocks).cost;
         }
         if iteration == 0 {
             cost = at_model;
@@ -397,15 +389,17 @@ fn robust_sigma(problem: &Problem<'_>, model: &WorkcellModel, nominal_sigma: f64
     let bin_width = nominal_sigma * RANGE_SIGMAS / BINS as f64;
     let mut histogram = [0u32; BINS];
     let mut total = 0u32;
+    // f32 residuals: a histogram bin is a 128th of 32 sigmas wide.
+    let projector = Projector::<f32>::new(model, &problem.pinhole);
     for_each_observation(
         problem.frames,
         problem.effectors,
         problem.feature_count,
         problem.reference_radius_m,
         |observation| {
-            let r = model
-                .residual(&problem.pinhole, observation)
-                .map_or(f64::INFINITY, |r| norm_from_squared(r.norm_squared()));
+            let r = projector
+                .residual(observation)
+                .map_or(f64::INFINITY, |r| f64::from(libm::sqrtf(r.norm_squared())));
             let bin = if r.is_finite() {
                 (r / bin_width) as usize
             } else {
@@ -527,7 +521,7 @@ fn at_optimum(
         sigma_px: 1.0,
     };
     let mut blocks = NormalBlocks::zeros();
-    let pass = normal_equations(problem, model, &unit, sums, &mut blocks);
+    let pass = normal_equations(problem, model, &unit, sums, false, &mut blocks);
     let (mut squares, mut kept, mut outliers) = (pass.kept_squares, pass.kept, pass.dropped);
     if let Some(folded) = problem.folded {
         squares += folded.squares();

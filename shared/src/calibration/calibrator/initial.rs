@@ -10,7 +10,7 @@ use crate::calibration::effector::{depth_roots, BaseFromDiscFit, DepthRoots};
 use crate::calibration::error::CalibrationError;
 use crate::calibration::homography::{pose_from_plane, PlanePoint, PlanePose};
 use crate::calibration::model::{rotation_z, WorkcellModel};
-use crate::calibration::part::{line_residual, FeatureSystem, VirtualGeometry};
+use crate::calibration::part::{line_miss_squared, FeatureSystem, VirtualGeometry};
 use crate::calibration::records::{to_f32, to_vector, EffectorRecord};
 use crate::calibration::virtual_rotation::{disc_from_virtual, VirtualRotation};
 use crate::observation::MAX_PART_FEATURES;
@@ -153,46 +153,88 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
 
     /// Eq 8 over all frames for every feature, twice: the second pass drops frames whose
     /// line misses the first solution by more than 4 times the RMS miss (gross outliers).
+    /// All features in each pass over the frames: a frame's map to the rotating
+    /// frame is computed once for them all.
     pub(super) fn locate_features(
         &self,
         geometry: &VirtualGeometry,
-    ) -> Result<[nalgebra::Vector3<f64>; MAX_PART_FEATURES], CalibrationError> {
-        let mut features = [Vector3::zeros(); MAX_PART_FEATURES];
-        for (index, slot) in features
-            .iter_mut()
-            .enumerate()
-            .take(self.header.part_feature_count)
-        {
-            let lines = || {
-                self.frames.view().iter().filter_map(move |frame| {
-                    let pixel = frame.part.and_then(|part| part.get(index).copied())?;
-                    let m = self
-                        .virtual_point(&geometry.rotation, pixel, "part_px")
-                        .ok()?;
-                    Some(geometry.affine_line(frame.theta, m))
-                })
-            };
-            let mut system = FeatureSystem::default();
-            lines().for_each(|line| system.add(line, 1.0));
-            let mut point = system.solve()?;
-            for _ in 0..2 {
-                let (mut squares, mut count) = (0.0, 0u32);
-                for line in lines() {
-                    let miss = line_residual(&point, line);
-                    squares += miss * miss;
-                    count += 1;
-                }
-                let gate = 4.0 * libm::sqrt(squares / f64::from(count.max(1)));
-                let mut gated = FeatureSystem::default();
-                lines()
-                    .filter(|line| line_residual(&point, *line) <= gate)
-                    .for_each(|line| gated.add(line, 1.0));
-                match gated.solve() {
-                    Ok(next) => point = next,
-                    Err(_) => break,
+    ) -> Result<[Vector3<f64>; MAX_PART_FEATURES], CalibrationError> {
+        let count = self.header.part_feature_count.min(MAX_PART_FEATURES);
+        let reflection = geometry.reflection();
+        // Calls `visit(feature, line)` for every frame's line of every feature.
+        let each_line = |visit: &mut dyn FnMut(usize, (Vector2<f64>, Vector2<f64>))| {
+            for frame in self.frames.view().iter() {
+                let Some(part) = frame.part else {
+                    continue;
+                };
+                let map = VirtualGeometry::rotating_map(&reflection, frame.theta);
+                for (index, pixel) in part.iter().take(count).enumerate() {
+                    if let Ok(m) = self.virtual_point(&geometry.rotation, *pixel, "part_px") {
+                        visit(index, geometry.affine_line_through(&map, m));
+                    }
                 }
             }
-            *slot = point;
+        };
+        let mut systems = [FeatureSystem::default(); MAX_PART_FEATURES];
+        each_line(&mut |index, line| {
+            if let Some(system) = systems.get_mut(index) {
+                system.add(line, 1.0);
+            }
+        });
+        let mut features = [Vector3::zeros(); MAX_PART_FEATURES];
+        for (feature, system) in features.iter_mut().zip(&systems).take(count) {
+            *feature = system.solve()?;
+        }
+        // A feature whose gated system cannot be solved, or is the system it
+        // was solved from (the same lines, to the last bit), keeps its point.
+        let mut settled = [false; MAX_PART_FEATURES];
+        for _ in 0..2 {
+            if settled.iter().take(count).all(|settled| *settled) {
+                break;
+            }
+            let mut misses = [(0.0f64, 0u32); MAX_PART_FEATURES];
+            each_line(&mut |index, line| {
+                if let (Some(point), Some((squares, lines))) =
+                    (features.get(index), misses.get_mut(index))
+                {
+                    *squares += line_miss_squared(point, line);
+                    *lines += 1;
+                }
+            });
+            // 4 RMS misses, squared.
+            let gates = misses.map(|(squares, lines)| 16.0 * squares / f64::from(lines.max(1)));
+            let mut gated = [FeatureSystem::default(); MAX_PART_FEATURES];
+            each_line(&mut |index, line| {
+                if let (Some(point), Some(gate), Some(system)) =
+                    (features.get(index), gates.get(index), gated.get_mut(index))
+                {
+                    if line_miss_squared(point, line) <= *gate {
+                        system.add(line, 1.0);
+                    }
+                }
+            });
+            for (((feature, system), solved_from), settled) in features
+                .iter_mut()
+                .zip(&gated)
+                .zip(systems.iter_mut())
+                .zip(settled.iter_mut())
+                .take(count)
+            {
+                if *settled {
+                    continue;
+                }
+                if system == solved_from {
+                    *settled = true;
+                    continue;
+                }
+                match system.solve() {
+                    Ok(next) => {
+                        *feature = next;
+                        *solved_from = *system;
+                    }
+                    Err(_) => *settled = true,
+                }
+            }
         }
         Ok(features)
     }
