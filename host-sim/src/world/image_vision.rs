@@ -17,7 +17,7 @@ use shared::detection::identify::MarkLabel;
 use shared::protocol::{CameraFeatureFrame, LabeledPoint, PointLabel};
 
 use super::World;
-use crate::camera_recording::simulate::FrameRenderer;
+use crate::camera_recording::simulate::{FrameRenderer, TrueFrame};
 use crate::front_end::score::{Judge, Verdict};
 use crate::front_end::FrontEnd;
 use crate::scenario::pick::PickExperiment;
@@ -103,14 +103,37 @@ impl ImageVision {
         if let Some(labels) = front_end.run.frames.last() {
             for point in labels.points.iter().filter(|p| camera.contains(p.pixel)) {
                 self.stats.labels += 1;
+                if std::env::var_os("LABEL_DEBUG").is_some() {
+                    eprintln!(
+                        "label {:?} frame {trigger_id} at {:.1?}; nearest true mark {}",
+                        point.label,
+                        point.pixel,
+                        nearest_mark(&frame.truth, point.pixel)
+                    );
+                }
                 match judge.verdict(labels.trigger_id, point) {
                     Some(Verdict::Wrong) => {
                         self.stats.wrong_labels += 1;
                         if std::env::var_os("EFFECTOR_DEBUG").is_some() {
-                            eprintln!("wrong label {:?} frame {trigger_id}", point.label);
+                            eprintln!(
+                                "wrong label {:?} frame {trigger_id} at {:.1?}; nearest true mark {}",
+                                point.label,
+                                point.pixel,
+                                nearest_mark(&frame.truth, point.pixel)
+                            );
                         }
                     }
-                    Some(Verdict::Off) => self.stats.off_labels += 1,
+                    Some(Verdict::Off) => {
+                        self.stats.off_labels += 1;
+                        if std::env::var_os("EFFECTOR_DEBUG").is_some() {
+                            eprintln!(
+                                "off label {:?} frame {trigger_id} at {:.1?}; nearest true mark {}",
+                                point.label,
+                                point.pixel,
+                                nearest_mark(&frame.truth, point.pixel)
+                            );
+                        }
+                    }
                     _ => {}
                 }
                 // More points than a frame carries cannot come from <= 8
@@ -128,4 +151,26 @@ impl ImageVision {
         front_end.run.log.frames.clear();
         Ok(out)
     }
+}
+
+/// The true mark whose pinhole pixel is nearest `pixel`, described (what a
+/// wrong label's debug line says it really was).
+fn nearest_mark(truth: &TrueFrame, pixel: [f64; 2]) -> String {
+    truth
+        .marks
+        .iter()
+        .map(|mark| {
+            let d = (mark.pinhole_px[0] - pixel[0]).hypot(mark.pinhole_px[1] - pixel[1]);
+            (d, mark)
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map_or_else(
+            || "none".to_string(),
+            |(d, mark)| {
+                format!(
+                    "{} {} {d:.1} px away (visible {}, shows {})",
+                    mark.kind, mark.index, mark.visible, mark.shows
+                )
+            },
+        )
 }

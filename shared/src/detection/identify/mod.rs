@@ -1035,7 +1035,25 @@ impl Identifier {
             // (With a key mark, `order_from_key` checks the others alike.)
             let alike = self.settings.diameters.part_key_m.is_some()
                 || (least > 0.0 && most <= least * FEATURE_LIKE_LIGHT);
-            if candidates.len() != count || !unlabelled_features || !settled || !alike {
+            // ... and only while the reference mark is in hand, labelled and
+            // seen now. A reference whose track lost its label (the arm hid
+            // it) turns with the disc like a feature, and is followed long
+            // enough to be a feature candidate (0.6 rad) before it is long
+            // enough to be taken back as the reference (1.2 rad): with the
+            // key feature hidden at that moment it once made a set of three
+            // that passed every check (its light 2.25 plain features', the
+            // key's 1.41), and every part label was wrong for the rest of the
+            // run (cell 10000803: 296 wrong labels, part 167 mm off).
+            let reference_in_hand = self
+                .tracks
+                .iter()
+                .any(|f| f.label == Some(MarkLabel::Reference) && f.blob.is_some());
+            if candidates.len() != count
+                || !unlabelled_features
+                || !settled
+                || !alike
+                || !reference_in_hand
+            {
                 return;
             }
             match self.settings.diameters.part_key_m {
