@@ -91,8 +91,17 @@ const SETTLED_HITS: u32 = 15;
 /// its track predicted it, px, and the track was seen the frame before: an
 /// effector mark that takes a hidden disc mark's place seldom lands so well.
 const OUTPUT_GATE_PX: f64 = 1.0;
-/// A followed blob's flux may change by this factor from frame to frame.
+/// A followed blob's flux may differ by this factor from its track's mean
+/// (the light varies across the image) ...
 const FLUX_JUMP: f64 = 1.5;
+/// ... and by this factor from the blob it followed in the frame before
+/// (the light changes little between frames; noise moves a mark's flux by a
+/// few per cent). Another mark in a hidden one's place sends a different
+/// light: the gripper's small mark over the disc centre 0.69 of it, the key
+/// feature over it 0.63, a feature for the gripper's small mark 0.64 (the
+/// 1,000 cells of seed 10 through images gave each such wrong label once
+/// under `FLUX_JUMP` alone).
+const FLUX_STEP: f64 = 1.25;
 /// Turning things lie on the disc: within this factor of its radius.
 const DISC_MARGIN: f64 = 1.1;
 /// The disc centre's mark lies within this share of the reference path's
@@ -292,6 +301,10 @@ pub struct Identifier {
     /// label is given only within [`OUTPUT_GATE_PX`] of it (a gripper mark
     /// resting beside the hidden centre would otherwise be followed as it).
     centre_px: Option<PixelPoint>,
+    /// The centre mark's flux while it was labelled: a mark taking its place
+    /// (the gripper's small mark held over it sends 0.69 of its light, the
+    /// key feature 0.63) is not the centre.
+    centre_flux: Option<f64>,
     effector: EffectorMarks,
     /// The reference mark's mean flux, the yardstick of the other marks' sizes.
     reference_flux: Option<f64>,
@@ -310,6 +323,7 @@ impl Identifier {
             disc: None,
             features_rotating: Vec::new(),
             centre_px: None,
+            centre_flux: None,
             effector: EffectorMarks::new(
                 settings.diameters.effector_m,
                 settings.diameters.reference_m,
@@ -551,9 +565,19 @@ impl Identifier {
             // A followed mark keeps its brightness: a blob sending much more
             // or less light is another mark in its place (the gripper's over
             // a feature) or the mark half hidden; it is not taken.
+            // (The centre does not move across the image: its light keeps
+            // within FLUX_STEP of its mean, and a half-hidden frame cannot
+            // walk it down to the gripper's mark's.)
+            let mean_band = if followed.label == Some(MarkLabel::DiscCentre) {
+                FLUX_STEP
+            } else {
+                FLUX_JUMP
+            };
             let steady = |flux: f64| {
                 let track = &followed.track;
-                track.hits < MIN_HITS || Self::in_band(flux, track.mean_flux(), FLUX_JUMP)
+                track.hits < MIN_HITS
+                    || (Self::in_band(flux, track.mean_flux(), mean_band)
+                        && Self::in_band(flux, track.latest_flux, FLUX_STEP))
             };
             let taken = taken.filter(|&i| {
                 points
@@ -608,10 +632,6 @@ impl Identifier {
             }
         }
         (ambiguous, near_disc_mark)
-    }
-
-    fn has_label(&self, label: MarkLabel) -> bool {
-        self.tracks.iter().any(|f| f.label == Some(label))
     }
 
     /// The disc model of a turning track taken as the reference.
@@ -699,6 +719,7 @@ impl Identifier {
         self.disc = None;
         self.features_rotating.clear();
         self.centre_px = None;
+        self.centre_flux = None;
         self.reference_flux = None;
     }
 
@@ -842,21 +863,29 @@ impl Identifier {
         let Some(disc) = self.disc else {
             return;
         };
-        if self.has_label(MarkLabel::DiscCentre) {
+        if let Some(centre) = self
+            .tracks
+            .iter()
+            .find(|f| f.label == Some(MarkLabel::DiscCentre))
+        {
+            self.centre_flux = Some(centre.track.mean_flux());
             return;
         }
         // Once the centre's image is known, the centre is the one track
         // seen there in this frame and the one before (its path may hold
-        // what stood there while the centre was hidden).
+        // what stood there while the centre was hidden), of the centre's light.
         if let Some(home) = self.centre_px {
             let at_home =
                 |p: PixelPoint| libm::hypot(p[0] - home[0], p[1] - home[1]) <= OUTPUT_GATE_PX;
+            let centre_flux = self.centre_flux;
             let mut there = self.tracks.iter_mut().filter(|f| {
                 f.label.is_none()
                     && !f.on_arm
                     && f.track.misses == 0
                     && at_home(f.track.latest.1)
                     && f.track.previous.is_some_and(|(_, p)| at_home(p))
+                    && centre_flux
+                        .is_none_or(|flux| Self::in_band(f.track.latest_flux, flux, FLUX_STEP))
             });
             if let (Some(f), None) = (there.next(), there.next()) {
                 f.label = Some(MarkLabel::DiscCentre);

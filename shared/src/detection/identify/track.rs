@@ -148,6 +148,9 @@ pub struct Track {
     /// Sum of the blobs' fluxes (area times mean contrast, grey px): the
     /// light a mark sends, proportional to its true area however blurred.
     pub flux_sum: f64,
+    /// The newest blob's flux: a mark's light changes little from one frame
+    /// to the next, however much it changes across the image.
+    pub latest_flux: f64,
     /// The path's fit over the recent arc (prediction, consistency).
     pub fit: ArcFit,
     /// The path's fit over most of a turn (its centre and size).
@@ -169,6 +172,7 @@ impl Track {
             misses: 0,
             area_sum: area_px,
             flux_sum: flux,
+            latest_flux: flux,
             fit,
             whole,
         }
@@ -177,6 +181,7 @@ impl Track {
     /// Takes the next observation.
     pub fn update(&mut self, theta: f64, p: PixelPoint, area_px: f64, flux: f64) {
         self.flux_sum += flux;
+        self.latest_flux = flux;
         self.earlier = self.previous;
         self.previous = Some(self.latest);
         self.latest = (theta, p);
