@@ -86,7 +86,8 @@ pub enum OtherBlock<T: nalgebra::Scalar = f64> {
     Base(SMatrix<T, 2, 4>),
 }
 
-/// The scalars a Jacobian is computed in: f64, and f32 (the Cortex-M4F's FPU).
+/// The scalars a residual and its Jacobian are computed in ([`Projector`]): f64,
+/// and f32 (the Cortex-M4F's FPU).
 pub trait JacobianScalar: RealField + Copy {
     /// The nearest value of this type.
     fn nearest(value: f64) -> Self;

@@ -154,16 +154,14 @@ enum Sums {
 /// docs/calibration.md ("Precision") has the measured ratios.
 const MIN_MIXED_PIVOT_RATIO: f64 = 1e-4;
 
-/// The Gauss-Newton normal equations at `model`, in arrowhead blocks written into the
-/// caller's `blocks` (filled in place rather than returned: no second copy on a
-/// firmware stack). Each point's residual is f64 whatever `sums`.
 /// What a pass over the points sums beside the normal equations, from the
 /// same residuals: on the Cortex-M4F a pass is millions of instructions, so
 /// the first iteration of a phase takes its starting cost from here and the
 /// covariance's pass gives the fit's statistics.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 struct PassSums {
-    /// The loss's cost at the model, [`total_cost`]'s.
+    /// The loss's cost at the model: [`total_cost`]'s when the pass computed
+    /// its residuals in f64.
     cost: f64,
     /// Squared residual norms of the points the loss keeps (weight above 0).
     kept_squares: f64,
@@ -193,9 +191,10 @@ impl PassSums {
     }
 }
 
-/// The normal equations at `model` into `blocks`, and what the pass sums
-/// beside them (the folded observations' cost included, not their points).
-/// With `exact_cost` the pass's cost is the f64 [`total_cost`]'s (the first
+/// The Gauss-Newton normal equations at `model`, in arrowhead blocks written
+/// into the caller's `blocks` (filled in place rather than returned: no second
+/// copy on a firmware stack), and what the pass sums beside them (the folded
+/// observations' cost included, not their points). With `exact_cost` the pass's cost is the f64 [`total_cost`]'s (the first
 /// pass of a phase, whose cost the phase compares its steps with); without,
 /// a [`Sums::Mixed`] pass computes every point in f32 and its cost is good
 /// only for statistics (RMS, outliers).
