@@ -105,7 +105,7 @@ impl ImageVision {
                 self.stats.labels += 1;
                 if std::env::var_os("LABEL_DEBUG").is_some() {
                     eprintln!(
-                        "label {:?} frame {trigger_id} at {:.1?}; nearest true mark {}",
+                        "label {:?} frame {trigger_id} at {:.4?}; nearest true mark {}",
                         point.label,
                         point.pixel,
                         nearest_mark(&frame.truth, point.pixel)
@@ -168,8 +168,8 @@ fn nearest_mark(truth: &TrueFrame, pixel: [f64; 2]) -> String {
             || "none".to_string(),
             |(d, mark)| {
                 format!(
-                    "{} {} {d:.1} px away (visible {}, shows {})",
-                    mark.kind, mark.index, mark.visible, mark.shows
+                    "{} {} {d:.1} px away (visible {}, shows {}) true {:.4?}",
+                    mark.kind, mark.index, mark.visible, mark.shows, mark.pinhole_px
                 )
             },
         )
