@@ -11,7 +11,7 @@ use cortex_m_semihosting::hprintln;
 use heapless::Vec as HVec;
 use nalgebra::{Rotation3, Vector3};
 use shared::app::pick::PickCalibrator;
-use shared::calibration::CalibrationConfig;
+use shared::calibration::{CalibrationConfig, CalibrationError};
 use shared::observation::{
     CameraIntrinsics, EffectorSighting, LogHeader, ObservationFrame, PixelPoint, LOG_VERSION,
 };
@@ -133,20 +133,14 @@ pub fn estimates(timer: &DualTimer) -> Option<()> {
         part_feature_count: FEATURES.len(),
     };
     let mut world = World::new();
-    let mut calibrator = match PickCalibrator::new(&header, CalibrationConfig::default()) {
-        Ok(calibrator) => calibrator,
-        Err(error) => {
-            hprintln!("  estimate: calibrator refused: {:?}", error);
-            return None;
-        }
-    };
+    let mut calibrator = reported(
+        PickCalibrator::new(&header, CalibrationConfig::default()),
+        "the calibrator refused the cell",
+    )?;
     let mut k = 0;
     while !calibrator.about_to_thin() {
         let frame = world.frame(k, 100);
-        if let Err(error) = calibrator.push(&frame) {
-            hprintln!("  estimate: frame {} refused: {:?}", k, error);
-            return None;
-        }
+        reported(calibrator.push(&frame), "a frame was refused")?;
         k += 1;
     }
     let mut adopted = false;
@@ -157,21 +151,12 @@ pub fn estimates(timer: &DualTimer) -> Option<()> {
     }
     for _ in 0..400 {
         let frame = world.frame(k, 0);
-        if let Err(error) = calibrator.push(&frame) {
-            hprintln!("  estimate: frame {} refused: {:?}", k, error);
-            return None;
-        }
+        reported(calibrator.push(&frame), "a frame was refused")?;
         k += 1;
     }
     let mut outcome = None;
     let last = timer.measure(1, || outcome = Some(calibrator.estimate()));
-    let result = match outcome? {
-        Ok(result) => result,
-        Err(error) => {
-            hprintln!("  estimate: the final estimate failed: {:?}", error);
-            return None;
-        }
-    };
+    let result = reported(outcome?, "the final estimate failed")?;
     let camera = result.camera.disc_from_camera.translation_m;
     let part = result.part.position_m;
     hprintln!(
@@ -191,4 +176,11 @@ pub fn estimates(timer: &DualTimer) -> Option<()> {
         result.quality.rms_reprojection_px
     );
     Some(())
+}
+
+/// The value, or `None` with `what` and the error printed.
+fn reported<T>(result: Result<T, CalibrationError>, what: &str) -> Option<T> {
+    result
+        .map_err(|error| hprintln!("  estimate: {}: {:?}", what, error))
+        .ok()
 }

@@ -103,38 +103,27 @@ impl ImageVision {
         if let Some(labels) = front_end.run.frames.last() {
             for point in labels.points.iter().filter(|p| camera.contains(p.pixel)) {
                 self.stats.labels += 1;
-                if std::env::var_os("LABEL_DEBUG").is_some() {
-                    eprintln!(
-                        "label {:?} frame {trigger_id} at {:.4?}; nearest true mark {}",
-                        point.label,
-                        point.pixel,
-                        nearest_mark(&frame.truth, point.pixel)
-                    );
-                }
-                match judge.verdict(labels.trigger_id, point) {
+                let verdict = judge.verdict(labels.trigger_id, point);
+                let debug = match verdict {
                     Some(Verdict::Wrong) => {
                         self.stats.wrong_labels += 1;
-                        if std::env::var_os("EFFECTOR_DEBUG").is_some() {
-                            eprintln!(
-                                "wrong label {:?} frame {trigger_id} at {:.1?}; nearest true mark {}",
-                                point.label,
-                                point.pixel,
-                                nearest_mark(&frame.truth, point.pixel)
-                            );
-                        }
+                        Some(("wrong label", "EFFECTOR_DEBUG"))
                     }
                     Some(Verdict::Off) => {
                         self.stats.off_labels += 1;
-                        if std::env::var_os("EFFECTOR_DEBUG").is_some() {
-                            eprintln!(
-                                "off label {:?} frame {trigger_id} at {:.1?}; nearest true mark {}",
-                                point.label,
-                                point.pixel,
-                                nearest_mark(&frame.truth, point.pixel)
-                            );
-                        }
+                        Some(("off label", "EFFECTOR_DEBUG"))
                     }
-                    _ => {}
+                    _ => None,
+                };
+                for (what, variable) in debug.into_iter().chain([("label", "LABEL_DEBUG")]) {
+                    if std::env::var_os(variable).is_some() {
+                        eprintln!(
+                            "{what} {:?} frame {trigger_id} at {:.4?}; nearest true mark {}",
+                            point.label,
+                            point.pixel,
+                            nearest_mark(&frame.truth, point.pixel)
+                        );
+                    }
                 }
                 // More points than a frame carries cannot come from <= 8
                 // features; one that does not fit is left out.

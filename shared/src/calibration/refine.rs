@@ -13,7 +13,7 @@ use super::config::CalibrationConfig;
 use super::error::CalibrationError;
 use super::folded::FoldedInformation;
 use super::frame_store::FrameView;
-use super::model::{for_each_observation, Projector, WorkcellModel};
+use super::model::{for_each_observation, Observation, Projector, WorkcellModel};
 use super::normal_blocks::{
     Freedom, Increment, MarginalCovariance, NormalBlocks, NormalRun, RUN_POINTS,
 };
@@ -37,6 +37,19 @@ pub struct Problem<'a> {
     pub fix_base_height: bool,
     /// The observations the store had no room for, as normal equations.
     pub folded: Option<&'a FoldedInformation>,
+}
+
+impl Problem<'_> {
+    /// Calls `visit` for every stored image point (frames, then sightings).
+    pub fn for_each_observation(&self, visit: impl FnMut(&Observation)) {
+        for_each_observation(
+            self.frames,
+            self.effectors,
+            self.feature_count,
+            self.reference_radius_m,
+            visit,
+        );
+    }
 }
 
 /// Robust weighting of one phase: Huber threshold and optional hard gate (pixels).
@@ -122,18 +135,12 @@ pub struct Refined {
 fn total_cost(problem: &Problem<'_>, model: &WorkcellModel, loss: &Loss) -> f64 {
     let mut cost = 0.0;
     let projector = Projector::<f64>::new(model, &problem.pinhole);
-    for_each_observation(
-        problem.frames,
-        problem.effectors,
-        problem.feature_count,
-        problem.reference_radius_m,
-        |observation| {
-            cost += match projector.residual(observation) {
-                Some(r) => loss.cost(r.norm_squared()),
-                None => loss.behind_camera_cost(),
-            };
-        },
-    );
+    problem.for_each_observation(|observation| {
+        cost += match projector.residual(observation) {
+            Some(r) => loss.cost(r.norm_squared()),
+            None => loss.behind_camera_cost(),
+        };
+    });
     cost + problem.folded.map_or(0.0, |folded| folded.cost(model))
 }
 
@@ -212,19 +219,13 @@ fn normal_equations(
         Sums::Double => {
             let mut pass = PassSums::default();
             let projector = Projector::<f64>::new(model, &problem.pinhole);
-            for_each_observation(
-                problem.frames,
-                problem.effectors,
-                problem.feature_count,
-                problem.reference_radius_m,
-                |observation| {
-                    let point = projector.residual_with_jacobian(observation);
-                    let weight = pass.add(loss, point.map(|(r, _)| r.norm_squared()));
-                    if let Some((residual, jacobian)) = point.filter(|_| weight != 0.0) {
-                        blocks.accumulate(&jacobian.camera, &jacobian.other, &residual, weight);
-                    }
-                },
-            );
+            problem.for_each_observation(|observation| {
+                let point = projector.residual_with_jacobian(observation);
+                let weight = pass.add(loss, point.map(|(r, _)| r.norm_squared()));
+                if let Some((residual, jacobian)) = point.filter(|_| weight != 0.0) {
+                    blocks.accumulate(&jacobian.camera, &jacobian.other, &residual, weight);
+                }
+            });
             pass
         }
     };
@@ -253,29 +254,23 @@ fn mixed_normal_equations(
     let features = problem.feature_count;
     let single = Projector::<f32>::new(model, &problem.pinhole);
     let double = exact_cost.then(|| Projector::<f64>::new(model, &problem.pinhole));
-    for_each_observation(
-        problem.frames,
-        problem.effectors,
-        problem.feature_count,
-        problem.reference_radius_m,
-        |observation| {
-            let point = single.residual_with_jacobian(observation);
-            let squared = match &double {
-                Some(double) => double.residual(observation).map(|r| r.norm_squared()),
-                None => point.map(|(r, _)| f64::from(r.norm_squared())),
-            };
-            let weight = pass.add(loss, squared);
-            let Some((residual, jacobian)) = point.filter(|_| weight != 0.0) else {
-                return;
-            };
-            run.accumulate(&jacobian.camera, &jacobian.other, &residual, weight as f32);
-            in_run += 1;
-            if in_run == RUN_POINTS {
-                blocks.add_run(&mut run, features);
-                in_run = 0;
-            }
-        },
-    );
+    problem.for_each_observation(|observation| {
+        let point = single.residual_with_jacobian(observation);
+        let squared = match &double {
+            Some(double) => double.residual(observation).map(|r| r.norm_squared()),
+            None => point.map(|(r, _)| f64::from(r.norm_squared())),
+        };
+        let weight = pass.add(loss, squared);
+        let Some((residual, jacobian)) = point.filter(|_| weight != 0.0) else {
+            return;
+        };
+        run.accumulate(&jacobian.camera, &jacobian.other, &residual, weight as f32);
+        in_run += 1;
+        if in_run == RUN_POINTS {
+            blocks.add_run(&mut run, features);
+            in_run = 0;
+        }
+    });
     blocks.add_run(&mut run, features);
     pass
 }
@@ -390,26 +385,20 @@ fn robust_sigma(problem: &Problem<'_>, model: &WorkcellModel, nominal_sigma: f64
     let mut total = 0u32;
     // f32 residuals: a histogram bin is a 128th of 32 sigmas wide.
     let projector = Projector::<f32>::new(model, &problem.pinhole);
-    for_each_observation(
-        problem.frames,
-        problem.effectors,
-        problem.feature_count,
-        problem.reference_radius_m,
-        |observation| {
-            let r = projector
-                .residual(observation)
-                .map_or(f64::INFINITY, |r| f64::from(libm::sqrtf(r.norm_squared())));
-            let bin = if r.is_finite() {
-                (r / bin_width) as usize
-            } else {
-                BINS - 1
-            };
-            if let Some(count) = histogram.get_mut(bin.min(BINS - 1)) {
-                *count += 1;
-            }
-            total += 1;
-        },
-    );
+    problem.for_each_observation(|observation| {
+        let r = projector
+            .residual(observation)
+            .map_or(f64::INFINITY, |r| f64::from(libm::sqrtf(r.norm_squared())));
+        let bin = if r.is_finite() {
+            (r / bin_width) as usize
+        } else {
+            BINS - 1
+        };
+        if let Some(count) = histogram.get_mut(bin.min(BINS - 1)) {
+            *count += 1;
+        }
+        total += 1;
+    });
     let half = f64::from(total) / 2.0;
     let mut running = 0u32;
     for (bin, count) in histogram.iter().enumerate() {

@@ -319,18 +319,12 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
         let mut squares = 0.0;
         let mut count = 0u32;
         let projector = super::model::Projector::<f64>::new(model, &self.pinhole);
-        super::model::for_each_observation(
-            problem.frames,
-            problem.effectors,
-            problem.feature_count,
-            problem.reference_radius_m,
-            |observation| {
-                if let Some(r) = projector.residual(observation) {
-                    squares += r.norm_squared();
-                    count += 1;
-                }
-            },
-        );
+        problem.for_each_observation(|observation| {
+            if let Some(r) = projector.residual(observation) {
+                squares += r.norm_squared();
+                count += 1;
+            }
+        });
         if count == 0 {
             0.0
         } else {
