@@ -196,12 +196,6 @@ impl WorkcellModel {
         }
     }
 
-    /// Predicted minus measured pixel, or `None` when the point is behind the
-    /// camera (one point; a pass over many makes one [`Projector`]).
-    pub fn residual(&self, pinhole: &Pinhole, observation: &Observation) -> Option<Vector2<f64>> {
-        Projector::<f64>::new(self, pinhole).residual(observation)
-    }
-
     /// The increment that [`WorkcellModel::retract`] applies to `from` to reach this
     /// model (to first order in the rotation): where a folded linearisation at `from`
     /// ([`super::folded`]) reads the current model.

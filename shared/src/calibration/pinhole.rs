@@ -1,5 +1,5 @@
-//! The contract's pinhole camera (square pixels, no distortion): pixels to rays and
-//! camera-frame points to pixels with the projection's Jacobian.
+//! The contract's pinhole camera (square pixels, no distortion): pixels to rays, and
+//! the projection's Jacobian (`model::Projector` projects points in a pass).
 
 use nalgebra::{Matrix2x3, Vector2, Vector3};
 
@@ -36,17 +36,6 @@ impl Pinhole {
             (pixel.x - self.cx) / self.f_px,
             (pixel.y - self.cy) / self.f_px,
         )
-    }
-
-    /// `u = f x / z + cx`, `v = f y / z + cy`, or `None` for a point at or behind the camera.
-    pub fn project(&self, p_camera: &Vector3<f64>) -> Option<Vector2<f64>> {
-        if p_camera.z <= MIN_DEPTH_M {
-            return None;
-        }
-        Some(Vector2::new(
-            self.f_px * p_camera.x / p_camera.z + self.cx,
-            self.f_px * p_camera.y / p_camera.z + self.cy,
-        ))
     }
 }
 
