@@ -27,6 +27,7 @@ use self::matching::{match_frame, FrameMatch};
 use crate::link::{FramedLink, InProcessLink};
 use crate::pick::runner::run_pick_observed;
 use crate::scenario::pick::PickExperiment;
+use crate::world::render::scene::MarkKind;
 use crate::world::render::truth::{mark_images, MarkImage};
 use crate::world::render::{build_scene, FrameState, GrayFrame, Renderer};
 
@@ -60,6 +61,13 @@ impl Default for CheckOptions {
 pub struct Condition {
     /// Errors of the found marks against their projected centres, px, by class.
     pub errors: BTreeMap<&'static str, Vec<[f64; 2]>>,
+    /// Errors along the line from a mark's partner to the mark (positive:
+    /// away from it), px, by class: the reference from the disc centre, a
+    /// gripper mark from the other one. A share of these that every frame
+    /// carries alike scales what the controller measures with the pair (the
+    /// disc's image radius, the gripper's image length) and no number of
+    /// frames averages it away.
+    pub outward: BTreeMap<&'static str, Vec<f64>>,
     /// Marks that should have been found, by class.
     pub visible: BTreeMap<&'static str, usize>,
     /// Of those, missed, by class.
@@ -78,6 +86,18 @@ impl Condition {
                     .entry(mark.kind.class())
                     .or_default()
                     .push(found.error_px);
+                if let Some(partner) = partner_of(marks, mark.kind) {
+                    let away = [
+                        mark.centre_px[0] - partner.centre_px[0],
+                        mark.centre_px[1] - partner.centre_px[1],
+                    ];
+                    let length = away[0].hypot(away[1]);
+                    if length > 1.0 {
+                        self.outward.entry(mark.kind.class()).or_default().push(
+                            (found.error_px[0] * away[0] + found.error_px[1] * away[1]) / length,
+                        );
+                    }
+                }
             }
         }
         for mark in marks.iter().filter(|m| m.visible()) {
@@ -96,6 +116,9 @@ impl Condition {
         for (class, errors) in &other.errors {
             self.errors.entry(class).or_default().extend(errors);
         }
+        for (class, outward) in &other.outward {
+            self.outward.entry(class).or_default().extend(outward);
+        }
         for (class, n) in &other.visible {
             *self.visible.entry(class).or_default() += n;
         }
@@ -110,6 +133,18 @@ impl Condition {
     pub fn all_errors(&self) -> Vec<[f64; 2]> {
         self.errors.values().flatten().copied().collect()
     }
+}
+
+/// The mark whose image a mark of `kind` is measured against by the
+/// controller: the disc centre for the reference, the other gripper mark for
+/// a gripper mark.
+fn partner_of(marks: &[MarkImage], kind: MarkKind) -> Option<&MarkImage> {
+    let partner = match kind {
+        MarkKind::Reference => MarkKind::DiscCentre,
+        MarkKind::Effector(i) => MarkKind::Effector(1 - i.min(1)),
+        _ => return None,
+    };
+    marks.iter().find(|m| m.kind == partner)
 }
 
 /// A kept frame: the noisy image, its detections and the marks' truth.

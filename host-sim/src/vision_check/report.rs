@@ -1,5 +1,6 @@
 //! The figures of `host-sim vision-check`: a markdown report and its JSON.
 
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
 use serde::Serialize;
@@ -66,6 +67,9 @@ pub struct Summary {
     pub bias_p99_px: f64,
     pub bias_max_px: f64,
     pub bias_by_class: Vec<(String, f64, f64)>,
+    /// Error away from the partner mark at the default noise, by class:
+    /// mean (what every frame shares), standard deviation, count, px.
+    pub outward_by_class: Vec<(String, f64, f64, usize)>,
     pub partly_hidden: usize,
     pub wholly_hidden: usize,
     pub crowded: usize,
@@ -101,6 +105,7 @@ pub fn summarise(experiment: &str, seed: u64, tally: &Tally) -> Summary {
                     .filter(|(k, _)| *k == class)
                     .map(|(k, v)| (*k, *v))
                     .collect(),
+                outward: BTreeMap::new(),
                 spurious: 0,
                 frames_with_spurious: 0,
             };
@@ -142,6 +147,17 @@ pub fn summarise(experiment: &str, seed: u64, tally: &Tally) -> Summary {
                 (class.to_string(), rms, p99)
             })
             .collect(),
+        outward_by_class: tally
+            .noisy
+            .outward
+            .iter()
+            .map(|(class, e)| {
+                let n = e.len().max(1) as f64;
+                let mean = e.iter().sum::<f64>() / n;
+                let variance = e.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / n;
+                (class.to_string(), mean, variance.sqrt(), e.len())
+            })
+            .collect(),
         partly_hidden: tally.partly_hidden,
         wholly_hidden: tally.wholly_hidden,
         crowded: tally.crowded,
@@ -175,6 +191,16 @@ pub fn markdown(summary: &Summary) -> String {
             out,
             "| {name} | {} | {} | {} | {spurious} | {:.3} | {:.3} |",
             r.marks, r.found, r.missed, r.rms_px, r.p99_px
+        );
+    }
+    let _ = writeln!(
+        out,
+        "\nerror away from the partner mark (the reference from the disc centre, a gripper mark from the other), default noise: a mean that every frame shares scales the pair's image"
+    );
+    for (class, mean, deviation, n) in &summary.outward_by_class {
+        let _ = writeln!(
+            out,
+            "  {class}: mean {mean:+.4} px, deviation {deviation:.4} px ({n} marks)"
         );
     }
     let _ = writeln!(

@@ -15,6 +15,10 @@ const CENTROID_RIM_POINTS: usize = 512;
 /// camera than the mark (beyond the mark's own depth bias), m.
 const HIDDEN_MARGIN_M: f64 = 0.01;
 
+/// Where on its radius a mark's rim is sampled for what hides it: inside
+/// the rim, so that the sample's pixel is mostly the mark's.
+const RIM_SAMPLE_SHARE: f64 = 0.95;
+
 /// Gap between two marks' images below which they count as crowded, px.
 pub const CROWDING_GAP_PX: f64 = 3.0;
 
@@ -33,7 +37,8 @@ pub struct MarkImage {
     pub in_view: bool,
     /// Faces the camera.
     pub facing: bool,
-    /// Share of its samples (centre and a ring at 0.7 of its radius) that
+    /// Share of its samples (centre, a ring at 0.7 of its radius and one by
+    /// its rim) that
     /// something nearer hides, 0 to 1.
     pub hidden_fraction: f64,
     /// Another mark's image comes within [`CROWDING_GAP_PX`] of this one's:
@@ -113,11 +118,17 @@ fn mark_image(renderer: &Renderer, mark: &Mark, margin_px: f64) -> Option<MarkIm
     };
     let buffer = renderer.buffer();
     let (e1, e2) = super::scene::plane_basis(&normal);
+    // The centre, a ring inside and one on the rim: an arm edge that cuts
+    // off a mark's rim moves its centroid by tenths of a pixel.
+    let ring = |count: u32, share: f64| {
+        (0..count).map(move |i| {
+            let a = std::f64::consts::TAU * f64::from(i) / f64::from(count);
+            centre + (e1 * a.cos() + e2 * a.sin()) * (share * mark.radius_m)
+        })
+    };
     let samples: Vec<Vector3<f64>> = std::iter::once(centre)
-        .chain((0..8).map(|i| {
-            let a = std::f64::consts::TAU * f64::from(i) / 8.0;
-            centre + (e1 * a.cos() + e2 * a.sin()) * (0.7 * mark.radius_m)
-        }))
+        .chain(ring(8, 0.7))
+        .chain(ring(24, RIM_SAMPLE_SHARE))
         .collect();
     let hidden = samples
         .iter()
