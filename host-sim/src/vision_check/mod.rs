@@ -377,4 +377,35 @@ mod tests {
         // The gripper was seen.
         assert!(tally.noisy.visible.get("gripper").copied().unwrap_or(0) > 10);
     }
+
+    #[test]
+    fn the_pairs_the_controller_measures_keep_their_scale() {
+        // The reference beside the disc's dark rim and the gripper's marks
+        // on their black bar: a centre error that every frame shares scales
+        // the disc's image or the gripper's, and no number of frames averages
+        // it away. With the tiles' smooth level as each mark's background
+        // (before) these frames gave -0.071 px for the reference (towards the
+        // disc centre); with the background read beside each pixel, +0.007
+        // px, and -0.005 px for the gripper's marks.
+        let experiment = PickScenarioFile::default_experiment("turning").unwrap();
+        let options = CheckOptions {
+            frame_stride: 3,
+            still_every: 0,
+            keep_frames: false,
+        };
+        let mut tally = Tally::default();
+        for trial in 0..3 {
+            tally.merge(run_trial(&experiment, trial_seed(10, trial), &options).unwrap());
+        }
+        for class in ["reference", "gripper"] {
+            let outward = tally.noisy.outward.get(class).cloned().unwrap_or_default();
+            assert!(outward.len() > 100, "{class}: {} marks", outward.len());
+            let mean = outward.iter().sum::<f64>() / outward.len() as f64;
+            eprintln!(
+                "{class}: shared error {mean:+.4} px over {} marks",
+                outward.len()
+            );
+            assert!(mean.abs() < 0.02, "{class}: shared error {mean:+.4} px");
+        }
+    }
 }

@@ -176,3 +176,96 @@ fn a_truncated_image_is_an_error() {
         Err(ImageError::Truncated { .. })
     ));
 }
+
+/// Where a mark lies: on a dark backing a little larger than itself (the
+/// gripper's marks on their black bar), or beside a dark band (the
+/// reference mark inside the disc's rim).
+#[derive(Clone, Copy)]
+enum Surround {
+    /// A dark disc of this radius under the mark, px.
+    Backing(f32),
+    /// A dark band this far beyond the mark's edge (to its right), 1.6 px wide.
+    Band(f32),
+}
+
+/// Marks `(x, y, radius, surround)` painted at grey 190 over a bright
+/// surface (50) with their dark backing or band (15), supersampled 8 x 8,
+/// no noise.
+fn render_on_steps(marks: &[(f32, f32, f32, Surround)]) -> StdVec<u8> {
+    let mut pixels = vec![0u8; SIZE * SIZE];
+    for y in 0..SIZE {
+        for x in 0..SIZE {
+            let mut value = 0.0f32;
+            for sy in 0..8 {
+                for sx in 0..8 {
+                    let px = x as f32 - 0.5 + (sx as f32 + 0.5) / 8.0;
+                    let py = y as f32 - 0.5 + (sy as f32 + 0.5) / 8.0;
+                    let mut grey = 50.0;
+                    for &(cx, cy, r, surround) in marks {
+                        let d2 = (px - cx).powi(2) + (py - cy).powi(2);
+                        if d2 <= r * r {
+                            grey = 190.0;
+                        } else if (py - cy).abs() < 20.0 && (px - cx).abs() < 20.0 {
+                            let dark = match surround {
+                                Surround::Backing(radius) => d2 <= radius * radius,
+                                Surround::Band(gap) => {
+                                    let from = cx + r + gap;
+                                    px >= from && px < from + 1.6
+                                }
+                            };
+                            if dark {
+                                grey = 15.0;
+                            }
+                        }
+                    }
+                    value += grey / 64.0;
+                }
+            }
+            pixels[y * SIZE + x] = value.round().clamp(0.0, 255.0) as u8;
+        }
+    }
+    pixels
+}
+
+#[test]
+fn a_mark_on_a_dark_backing_or_beside_a_dark_band_keeps_its_centre() {
+    // A 5 x 5 grid: rows alternate between marks of radius 2 to 3.3 px on a
+    // backing 0.1 to 0.5 px wider and marks of radius 1.2 to 2 px with a
+    // band 1 to 2.5 px beyond their edge. The background beside each edge
+    // pixel is read from the window's sides: a backing or band next to the
+    // mark must not push its centre (here within 0.036 px, 0.009 px on
+    // average across the banded ones). In these small tiles the smooth level
+    // is right too; the bias it gave in rendered frames, where the tiles mix
+    // rim, disc and floor, is tested in host-sim's vision check.
+    let mut state = 17;
+    let mut marks = StdVec::new();
+    for row in 0..5 {
+        for column in 0..5 {
+            let x = 24.0 + 48.0 * column as f32 + splitmix(&mut state) as f32;
+            let y = 24.0 + 48.0 * row as f32 + splitmix(&mut state) as f32;
+            let u = splitmix(&mut state) as f32;
+            let v = splitmix(&mut state) as f32;
+            let mark = if row % 2 == 0 {
+                let r = 2.0 + 1.3 * u;
+                (x, y, r, Surround::Backing(r + 0.1 + 0.4 * v))
+            } else {
+                (x, y, 1.2 + 0.8 * u, Surround::Band(1.0 + 1.5 * v))
+            };
+            marks.push(mark);
+        }
+    }
+    let (blobs, _) = detect(&render_on_steps(&marks));
+    let mut band_dx = 0.0;
+    for &(x, y, r, surround) in &marks {
+        let (d, blob) = nearest(&blobs, x, y).unwrap();
+        assert!(d < 0.06, "mark at ({x}, {y}) r {r}: {blob:?} off by {d}");
+        if matches!(surround, Surround::Band(_)) {
+            band_dx += blob.x_px - x;
+        }
+    }
+    let mean_dx = band_dx / 10.0;
+    assert!(
+        mean_dx.abs() < 0.02,
+        "banded marks shifted by {mean_dx} px on average"
+    );
+}
