@@ -157,3 +157,22 @@ impl PickWatcher for RerunView {
         self.estimate.log(&self.rec, telemetry, truth)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn several_experiments_go_to_a_file_each_beside_the_one_named() {
+        let path = Path::new("out/pick.rrd");
+        assert_eq!(recording_path(path, "turning", 1), path);
+        assert_eq!(
+            recording_path(path, "turning", 5),
+            Path::new("out/pick-turning.rrd")
+        );
+        assert_eq!(
+            recording_path(Path::new("pick"), "experiment-1", 2),
+            Path::new("pick-experiment-1.rrd")
+        );
+    }
+}
