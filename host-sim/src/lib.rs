@@ -13,6 +13,7 @@
 //! - [`vision_check`]: the mark detector on rendered camera frames, against the truth.
 //! - [`live_camera`]: a V4L2 camera as a recording's source (frames; the `v4l2` feature).
 //! - [`overlay`]: pictures drawn over camera frames (PNG, animated GIF).
+//! - [`rerun_view`]: a pick as a Rerun recording (the `rerun` feature).
 //! - [`geometry`]: small geometric helpers with the contract's conventions.
 //! - [`homing`]: power-on homing trials against the drawn counter offsets.
 
@@ -30,6 +31,8 @@ pub mod log;
 pub mod overlay;
 pub mod pick;
 pub mod recording;
+#[cfg(feature = "rerun")]
+pub mod rerun_view;
 pub mod scenario;
 pub mod vision_check;
 pub mod world;

@@ -13,11 +13,12 @@ use crate::link::{
 };
 use crate::pick::outputs::write_run_outputs;
 use crate::pick::own_log::{
-    in_process_board, run_pick_logged, write_pick_log, InProcessOptions, PickLogFiles,
+    in_process_board, run_pick_logged_watched, write_pick_log, InProcessOptions, PickLogFiles,
 };
 use crate::pick::record::PickRun;
 use crate::pick::report::{link_line, results_table, summary_line};
-use crate::pick::runner::run_pick;
+use crate::pick::runner::run_pick_watched;
+use crate::pick::watch::{NoWatcher, PickWatcher};
 use crate::scenario::pick::{CameraSource, PickExperiment, PickScenarioFile};
 
 /// Options of the default run.
@@ -65,6 +66,13 @@ pub struct Args {
     /// (the scenario's `camera.source` when absent).
     #[arg(long, value_enum)]
     pub camera_source: Option<CameraSource>,
+    /// Write a Rerun recording of each experiment's pick (the 3-D cell, the
+    /// camera's frames with their labels, the estimate against the truth)
+    /// to this file (`FILE-<experiment>.rrd` when several run); open it
+    /// with `rerun FILE.rrd`.
+    #[cfg(feature = "rerun")]
+    #[arg(long, value_name = "FILE.rrd")]
+    pub rerun: Option<PathBuf>,
 }
 
 fn parse_rate(text: &str) -> Result<f64, String> {
@@ -90,6 +98,8 @@ impl Default for Args {
             print_scenario: false,
             log_dir: None,
             camera_source: None,
+            #[cfg(feature = "rerun")]
+            rerun: None,
         }
     }
 }
@@ -101,6 +111,7 @@ fn run_logged(
     seed: u64,
     args: &Args,
     dir: &Path,
+    watcher: &mut dyn PickWatcher,
 ) -> Result<(PickRun, PickLogFiles)> {
     let Some(board) = in_process_board(&args.link) else {
         bail!(
@@ -112,7 +123,8 @@ fn run_logged(
         byte_error_rate: args.link_noise,
         seed: args.link_noise_seed,
     });
-    let logged = run_pick_logged(experiment, seed, InProcessOptions { board, noise })?;
+    let logged =
+        run_pick_logged_watched(experiment, seed, InProcessOptions { board, noise }, watcher)?;
     let files = write_pick_log(&dir.join(&experiment.name), &logged)?;
     Ok((logged.run, files))
 }
@@ -141,39 +153,47 @@ pub fn log_line(files: &PickLogFiles) -> String {
     }
 }
 
-fn run_on_link(experiment: &PickExperiment, seed: u64, args: &Args) -> Result<PickRun> {
+fn run_on_link(
+    experiment: &PickExperiment,
+    seed: u64,
+    args: &Args,
+    watcher: &mut dyn PickWatcher,
+) -> Result<PickRun> {
     fn go<L: ByteLink>(
         experiment: &PickExperiment,
         seed: u64,
         link: L,
         args: &Args,
+        watcher: &mut dyn PickWatcher,
     ) -> Result<PickRun> {
         if args.link_noise > 0.0 {
             let noise = NoiseConfig {
                 byte_error_rate: args.link_noise,
                 seed: args.link_noise_seed,
             };
-            run_pick(
+            run_pick_watched(
                 experiment,
                 seed,
                 &mut FramedLink::new(NoisyLink::new(link, noise)),
+                watcher,
             )
         } else {
-            run_pick(experiment, seed, &mut FramedLink::new(link))
+            run_pick_watched(experiment, seed, &mut FramedLink::new(link), watcher)
         }
     }
     let link = args.link.as_str();
     if link == "in-process" {
-        go(experiment, seed, InProcessLink::new(), args)
+        go(experiment, seed, InProcessLink::new(), args, watcher)
     } else if link == "in-process:stm32f407" {
         let board = InProcessLink::with_board_timing(BoardTiming::stm32f407());
-        go(experiment, seed, board, args)
+        go(experiment, seed, board, args, watcher)
     } else if let Some(addr) = link.strip_prefix("tcp:") {
         go(
             experiment,
             seed,
             TcpLink::connect(addr, Duration::from_secs(5))?,
             args,
+            watcher,
         )
     } else if let Some(spec) = link.strip_prefix("serial:") {
         let (path, baud) = match spec.split_once('@') {
@@ -184,7 +204,13 @@ fn run_on_link(experiment: &PickExperiment, seed: u64, args: &Args) -> Result<Pi
             ),
             None => (spec, 115_200),
         };
-        go(experiment, seed, SerialPortLink::open(path, baud)?, args)
+        go(
+            experiment,
+            seed,
+            SerialPortLink::open(path, baud)?,
+            args,
+            watcher,
+        )
     } else {
         bail!(
             "unknown --link {link}: use in-process, in-process:stm32f407, tcp:HOST:PORT or serial:PATH[@BAUD]"
@@ -229,14 +255,30 @@ pub fn run(args: &Args) -> Result<()> {
     let mut runs = Vec::new();
     for experiment in &experiments {
         let started = Instant::now();
+        #[cfg(feature = "rerun")]
+        let mut view = match &args.rerun {
+            Some(path) => Some(crate::rerun_view::RerunView::create(
+                &crate::rerun_view::recording_path(path, &experiment.name, experiments.len()),
+                experiment,
+                args.seed,
+            )?),
+            None => None,
+        };
+        #[cfg(feature = "rerun")]
+        let watcher: &mut dyn PickWatcher = match view.as_mut() {
+            Some(view) => view,
+            None => &mut NoWatcher,
+        };
+        #[cfg(not(feature = "rerun"))]
+        let watcher = &mut NoWatcher;
         let (run, log_files) = match &args.log_dir {
             Some(dir) => {
-                let (run, files) = run_logged(experiment, args.seed, args, dir)
+                let (run, files) = run_logged(experiment, args.seed, args, dir, watcher)
                     .with_context(|| format!("experiment {}", experiment.name))?;
                 (run, Some(files))
             }
             None => (
-                run_on_link(experiment, args.seed, args)
+                run_on_link(experiment, args.seed, args, watcher)
                     .with_context(|| format!("experiment {}", experiment.name))?,
                 None,
             ),
@@ -252,6 +294,16 @@ pub fn run(args: &Args) -> Result<()> {
         }
         if let Some(files) = &log_files {
             println!("  {}", log_line(files));
+        }
+        #[cfg(feature = "rerun")]
+        if let Some(view) = view {
+            let (path, bytes) = view.finish()?;
+            println!(
+                "  Rerun recording: {} ({:.1} MB; open with `rerun {}`)",
+                path.display(),
+                bytes as f64 * 1e-6,
+                path.display()
+            );
         }
         if !args.no_plots {
             let written = write_run_outputs(&run, &args.out)

@@ -12,6 +12,8 @@
 //!   with the truth and the controller's final estimate beside it.
 //! - [`montecarlo`]: many seeded picks over random workcells and their statistics.
 //! - [`faults`]: the pick under injected faults and its safety invariants.
+//! - [`watch`]: onlookers of a run (logs, recordings, viewers): the world and
+//!   what crossed the link, each period.
 
 pub mod csv;
 pub mod faults;
@@ -26,3 +28,4 @@ pub mod record;
 pub mod report;
 pub mod runner;
 pub mod synthetic;
+pub mod watch;

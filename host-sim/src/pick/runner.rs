@@ -21,6 +21,7 @@ use super::invariants::{PeriodTruth, SafetyMonitor};
 use super::record::{
     CalibrationRecord, GraspRecord, LinkRecord, PhaseEvent, PickResult, PickRun, TickRecord,
 };
+use super::watch::{EachPeriod, NoWatcher, PickWatcher};
 use crate::geometry::{angle_distance, wrap_angle};
 use crate::link::{ByteLink, FramedLink, LinkError, NoiseConfig, NoisyLink};
 use crate::scenario::pick::PickExperiment;
@@ -209,7 +210,7 @@ pub fn run_pick<L: ByteLink>(
     seed: u64,
     link: &mut FramedLink<L>,
 ) -> Result<PickRun> {
-    run_pick_observed(experiment, seed, link, &mut |_, _| Ok(()))
+    run_pick_watched(experiment, seed, link, &mut NoWatcher)
 }
 
 /// [`run_pick`], showing `observe` the world and the command of every
@@ -220,6 +221,18 @@ pub fn run_pick_observed<L: ByteLink>(
     seed: u64,
     link: &mut FramedLink<L>,
     observe: &mut dyn FnMut(&World, &ActuatorCommand) -> Result<()>,
+) -> Result<PickRun> {
+    run_pick_watched(experiment, seed, link, &mut EachPeriod(observe))
+}
+
+/// [`run_pick`], showing `watcher` every period, the camera frames sent and
+/// the controller's telemetry (see [`PickWatcher`]). It only looks: the run
+/// is the same.
+pub fn run_pick_watched<L: ByteLink>(
+    experiment: &PickExperiment,
+    seed: u64,
+    link: &mut FramedLink<L>,
+    watcher: &mut dyn PickWatcher,
 ) -> Result<PickRun> {
     let mut world = World::new(experiment, seed)
         .with_context(|| format!("building the world of {} (seed {seed})", experiment.name))?;
@@ -267,7 +280,9 @@ pub fn run_pick_observed<L: ByteLink>(
             monitor.observe(&period_truth(&world));
             continue;
         }
-        for frame in world.due_camera_frames() {
+        let frames = world.due_camera_frames();
+        watcher.frames_sent(&world, &frames)?;
+        for frame in frames {
             link.send(&Message::CameraFeatures(frame))?;
         }
         let sample = world.sensor_sample();
@@ -341,6 +356,7 @@ pub fn run_pick_observed<L: ByteLink>(
                                 (to_f64(p), f64::from(telemetry.part_yaw_base_rad), truth)
                             });
                             records.push(tick_record(&telemetry, &truth));
+                            watcher.telemetry(&telemetry, &truth)?;
                         }
                         Message::CalibrationReport(report) => {
                             let workcell = world.workcell();
@@ -388,7 +404,7 @@ pub fn run_pick_observed<L: ByteLink>(
             )
         };
         let had_grasp = world.grasp().is_some();
-        observe(&world, &command)?;
+        watcher.period(&world, &command)?;
         world
             .apply(&command)
             .with_context(|| format!("world step at t = {now:.3} s"))?;

@@ -28,7 +28,8 @@ use self::estimate_file::{
 };
 use self::truth::{pick_truth, PickTruthFile};
 use super::record::PickRun;
-use super::runner::run_pick_observed;
+use super::runner::run_pick_watched;
+use super::watch::{Both, EachPeriod, NoWatcher, PickWatcher};
 use crate::link::{BoardTiming, FramedLink, InProcessLink, NoiseConfig, NoisyLink, WorkerLog};
 use crate::log::LogWriter;
 use crate::recording::{truth_path_for, write_truth_file_of};
@@ -72,6 +73,16 @@ pub fn run_pick_logged(
     seed: u64,
     options: InProcessOptions,
 ) -> Result<LoggedPick> {
+    run_pick_logged_watched(experiment, seed, options, &mut NoWatcher)
+}
+
+/// [`run_pick_logged`], with `watcher` shown the run too.
+pub fn run_pick_logged_watched(
+    experiment: &PickExperiment,
+    seed: u64,
+    options: InProcessOptions,
+    watcher: &mut dyn PickWatcher,
+) -> Result<LoggedPick> {
     let link = match options.board {
         Some(timing) => InProcessLink::with_board_timing(timing),
         None => InProcessLink::new(),
@@ -94,12 +105,14 @@ pub fn run_pick_logged(
     let (run, tap) = match options.noise {
         Some(noise) => {
             let mut link = FramedLink::new(NoisyLink::new(link, noise));
-            let run = run_pick_observed(experiment, seed, &mut link, &mut observe)?;
+            let mut both = Both(&mut EachPeriod(&mut observe), watcher);
+            let run = run_pick_watched(experiment, seed, &mut link, &mut both)?;
             (run, link.inner_mut().inner_mut().take_worker_tap())
         }
         None => {
             let mut link = FramedLink::new(link);
-            let run = run_pick_observed(experiment, seed, &mut link, &mut observe)?;
+            let mut both = Both(&mut EachPeriod(&mut observe), watcher);
+            let run = run_pick_watched(experiment, seed, &mut link, &mut both)?;
             (run, link.inner_mut().take_worker_tap())
         }
     };
