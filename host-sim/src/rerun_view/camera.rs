@@ -15,10 +15,11 @@ use anyhow::Result;
 use rerun::{Image, Points2D, RecordingStream};
 use shared::protocol::{CameraFeatureFrame, PointLabel};
 
-use super::names::{self, point_label, point_label_colour, point_label_name};
+use super::names::{self, point_label_colour, point_label_name};
 use crate::camera_recording::simulate::FrameRenderer;
 use crate::front_end::FrontEnd;
 use crate::scenario::pick::PickExperiment;
+use crate::world::image_vision::point_label;
 use crate::world::World;
 
 /// The drawn points' radius, px.

@@ -3,7 +3,6 @@
 
 use nalgebra::{Matrix3, Vector3};
 use rerun::Color;
-use shared::detection::identify::MarkLabel;
 use shared::protocol::PointLabel;
 
 use crate::front_end::pictures::{
@@ -73,15 +72,6 @@ pub fn point_label_name(label: PointLabel) -> String {
 }
 
 /// The label the vision computer sends for a front end's label.
-pub fn point_label(label: MarkLabel) -> PointLabel {
-    match label {
-        MarkLabel::DiscCentre => PointLabel::DiscCenter,
-        MarkLabel::Reference => PointLabel::Reference,
-        MarkLabel::PartFeature(i) => PointLabel::Part(i),
-        MarkLabel::Effector(i) => PointLabel::Effector(i),
-    }
-}
-
 /// A label's colour (the front end's pictures' colours).
 pub fn point_label_colour(label: PointLabel) -> Color {
     colour(match label {

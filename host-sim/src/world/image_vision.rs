@@ -53,7 +53,8 @@ impl std::fmt::Debug for ImageVision {
     }
 }
 
-fn point_label(label: MarkLabel) -> PointLabel {
+/// The label the link carries for the identifier's label.
+pub fn point_label(label: MarkLabel) -> PointLabel {
     match label {
         MarkLabel::DiscCentre => PointLabel::DiscCenter,
         MarkLabel::Reference => PointLabel::Reference,
