@@ -13,6 +13,7 @@ use super::estimate::CellEstimate;
 use super::motion::{flange_over, Prediction};
 use super::settings::PickSettings;
 use super::window::{grasp_window_holds, inside_with_margin, WINDOW_JOINT_MARGIN_RAD};
+use crate::angle::wrap_pi;
 use crate::app::tool::{effector_marks_base, TOOL_LENGTH_M};
 use crate::observation::CameraIntrinsics;
 use crate::planning::{
@@ -101,7 +102,8 @@ pub fn calibration_poses(
                 if !in_view || !within_reach(robot, &pose.translation.vector) {
                     continue;
                 }
-                let Ok(solution) = solve_ik(robot, &pose, &q, &ik) else {
+                let seed = waist_turned_towards(robot, &q, point.azimuth_rad);
+                let Ok(solution) = solve_ik(robot, &pose, &seed, &ik) else {
                     continue;
                 };
                 // On a joint's stop the arcs between the poses would drive it
@@ -126,6 +128,30 @@ pub fn calibration_poses(
         }
     }
     poses
+}
+
+/// `q` with the waist turned so that the flange's azimuth becomes `azimuth`,
+/// whichever way round keeps joint 1 inside its limits: the inverse
+/// kinematics only follows its seed, and from an arm that ended its search on
+/// the far side of the waist's range (at +154 degrees, say) the short way to a
+/// disc behind the robot (at -166 degrees) runs past the waist's stop, while
+/// the route reaches it the long way round.
+fn waist_turned_towards(
+    robot: &Puma560<f32>,
+    q: &JointVector<f32>,
+    azimuth: f32,
+) -> JointVector<f32> {
+    let flange = robot.forward_kinematics(q).translation.vector;
+    let limits = robot.joint_limits();
+    let mut waist = q.x + wrap_pi(azimuth - libm::atan2f(flange.y, flange.x));
+    if waist > limits.position_max.x {
+        waist -= core::f32::consts::TAU;
+    } else if waist < limits.position_min.x {
+        waist += core::f32::consts::TAU;
+    }
+    let mut seed = *q;
+    seed.x = waist;
+    seed
 }
 
 /// The conveyor as the plan saw it: angle, speed, and the delay before the plan starts.
@@ -287,5 +313,32 @@ pub fn plan_part_intercept(
             Err(PlanError::NoGraspWindow)
         }
         Err(e) => Err(e),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The arm as cell 10000084's search left it through images: the waist at
+    /// +154 degrees, the disc behind the robot at -166 degrees.
+    #[test]
+    fn a_pose_behind_the_robot_is_found_from_the_far_side_of_the_waist() {
+        let robot = Puma560::<f32>::new();
+        let q_search_end = JointVector::from([2.693, 1.024, -3.084, 0.0, -0.78, 0.0]);
+        let azimuth = (-166.0_f32).to_radians();
+        let tool = Vector3::new(0.55 * azimuth.cos(), 0.55 * azimuth.sin(), 0.45);
+        let pose = flange_pose(&tool, 0.0);
+        let ik = IkConfig::default();
+        let reached = |seed: &JointVector<f32>| {
+            solve_ik(&robot, &pose, seed, &ik)
+                .is_ok_and(|q| inside_with_margin(&robot, &q) && well_conditioned(&robot, &q))
+        };
+        // The short way round runs into the waist's stop.
+        assert!(!reached(&q_search_end));
+        let seed = waist_turned_towards(&robot, &q_search_end, azimuth);
+        let limits = robot.joint_limits();
+        assert!(seed.x >= limits.position_min.x && seed.x <= limits.position_max.x);
+        assert!(reached(&seed), "seed {seed:?}");
     }
 }
