@@ -85,6 +85,11 @@ const MIN_BASE_SEPARATION_M: f64 = 0.02;
 /// between them, m (a wrong pair seen twice in one place would agree with
 /// itself).
 const CONFIRM_MOVE_M: f64 = 0.05;
+/// A confirmed signature whose anchoring pairs no later pair moves rigidly
+/// from is confirmed afresh by a pair that this many earlier refused pairs
+/// (agreeing with it) moved rigidly to: three pairs, where the first
+/// confirmation takes two.
+const RECONFIRM_PAIRS: usize = 2;
 /// Two pairs' midpoints, placed in the camera frame at the depth their
 /// separation gives, must lie as far apart as their base-frame midpoints
 /// (a rigid motion keeps distances) within this plus [`RIGID_SHARE`] of it, m.
@@ -194,7 +199,7 @@ pub struct EffectorMarks {
     pub last_pair: Option<([PixelPoint; 2], [f64; 2])>,
     /// The last pair's signature (angle, rad; scale) and what became of it
     /// (diagnosis: 0 stored unconfirmed, 1 confirmed, 2 agreed, 3 angle or
-    /// scale off the confirmed one, 4 not rigid).
+    /// scale off the confirmed one, 4 not rigid, 5 confirmed afresh).
     pub last_signature: Option<(f64, f64, u8)>,
 }
 
@@ -459,25 +464,32 @@ impl EffectorMarks {
                     self.last_signature = note(3);
                     return [None, None];
                 }
-                if !holds.iter().any(|h| *h) {
+                if holds.iter().any(|h| *h) {
+                    self.last_signature = note(2);
+                    self.signature = Some((known, signature));
+                } else if self.confirmed_by_earlier(&signature, agree) >= RECONFIRM_PAIRS {
+                    // The pairs the signature was last held to may be off
+                    // themselves (a mark cut by the image's edge reads a
+                    // wrong depth), and then no later pair moves rigidly
+                    // from them (seed 10, cell 112: every pair of the
+                    // search's later sweeps refused). Three pairs since,
+                    // that agree with the signature and moved rigidly
+                    // between them, confirm it afresh, and it is held to
+                    // them from now on.
+                    self.last_signature = note(5);
+                    self.signature = Some((signature, signature));
+                    self.unconfirmed.clear();
+                } else {
+                    self.remember_unconfirmed(signature);
                     self.last_signature = note(4);
                     return [None, None];
                 }
-                self.last_signature = note(2);
-                self.signature = Some((known, signature));
             }
             None => {
                 // Confirmed by an earlier pair from elsewhere that agrees.
-                let confirmed = self.unconfirmed.iter().any(|s| {
-                    let (agree, rigid) = s.compare(&signature);
-                    (agree[0] && rigid[0] || agree[1] && rigid[1])
-                        && distance3(s.base_m, signature.base_m) >= CONFIRM_MOVE_M
-                });
+                let confirmed = self.confirmed_by_earlier(&signature, [true, true]) >= 1;
                 if !confirmed {
-                    if self.unconfirmed.is_full() {
-                        self.unconfirmed.remove(0);
-                    }
-                    let _ = self.unconfirmed.push(signature);
+                    self.remember_unconfirmed(signature);
                     self.last_signature = note(0);
                     return [None, None];
                 }
@@ -498,6 +510,32 @@ impl EffectorMarks {
             Some(labelled(0, m0.pixel, i0)),
             Some(labelled(1, m1.pixel, i1)),
         ]
+    }
+
+    /// How many earlier unconfirmed pairs at least `CONFIRM_MOVE_M` away
+    /// agree with `signature` and moved rigidly to it, under a normal
+    /// `under` allows.
+    fn confirmed_by_earlier(&self, signature: &Signature, under: [bool; 2]) -> usize {
+        self.unconfirmed
+            .iter()
+            .filter(|s| {
+                let (agree, rigid) = s.compare(signature);
+                let holds = (0..2).any(|k| {
+                    under.get(k).copied().unwrap_or(false)
+                        && agree.get(k).copied().unwrap_or(false)
+                        && rigid.get(k).copied().unwrap_or(false)
+                });
+                holds && distance3(s.base_m, signature.base_m) >= CONFIRM_MOVE_M
+            })
+            .count()
+    }
+
+    /// Keeps `signature` for a later pair to confirm, the oldest dropped.
+    fn remember_unconfirmed(&mut self, signature: Signature) {
+        if self.unconfirmed.is_full() {
+            self.unconfirmed.remove(0);
+        }
+        let _ = self.unconfirmed.push(signature);
     }
 
     fn learn_light(&mut self, k: usize, value: f64) {
