@@ -540,11 +540,11 @@ impl EffectorMarks {
             .iter()
             .filter(|s| {
                 let (agree, rigid) = s.compare(signature);
-                let holds = (0..2).any(|k| {
-                    under.get(k).copied().unwrap_or(false)
-                        && agree.get(k).copied().unwrap_or(false)
-                        && rigid.get(k).copied().unwrap_or(false)
-                });
+                let holds = under
+                    .iter()
+                    .zip(agree)
+                    .zip(rigid)
+                    .any(|((u, a), r)| *u && a && r);
                 holds && distance3(s.base_m, signature.base_m) >= CONFIRM_MOVE_M
             })
             .count()
@@ -659,8 +659,8 @@ impl EffectorMarks {
         }
         // Both marks seen: their lights must be two whole marks' (one partly
         // hidden is read off its centre, by up to a pixel).
+        let flux = |i: usize| blobs.get(i).copied().flatten().map_or(0.0, |b| b.flux);
         if let [Some(a), Some(b)] = found {
-            let flux = |i: usize| blobs.get(i).copied().flatten().map_or(0.0, |b| b.flux);
             if !self.both_whole(flux(a.blob), flux(b.blob)) {
                 for counts in self.refusals.iter_mut() {
                     if let Some(c) = counts.get_mut(5) {
@@ -685,12 +685,7 @@ impl EffectorMarks {
         }
         for (k, point) in found.iter().enumerate() {
             if let Some(point) = point {
-                let flux = blobs
-                    .get(point.blob)
-                    .copied()
-                    .flatten()
-                    .map_or(0.0, |b| b.flux);
-                self.learn_light(k, flux / separation_sq);
+                self.learn_light(k, flux(point.blob) / separation_sq);
             }
         }
         found
