@@ -3,14 +3,17 @@
 //! The pick's long moves (sweeping the marks past the camera, carrying the part
 //! to the drop-off, returning) can cross to the other side of the robot. A
 //! straight line would then pass close to the base axis, where the PUMA's
-//! shoulder is singular; an arc `(r(t), phi(t), z(t))` with quintic profiles keeps
-//! the radius bounded away from it and is smooth to the acceleration, as Eq 23's
-//! feed-forward needs. The gripper points down, its yaw following its own quintic.
+//! shoulder is singular; an arc `(r(t), phi(t), z(t))` keeps the radius bounded
+//! away from it. The four coordinates (with the gripper's yaw, pointing down)
+//! move together along one time scaling (`scaling`): a quintic, or for a long
+//! move blends and a cruise at the top speed; smooth to the acceleration
+//! either way, as Eq 23's feed-forward needs.
 
 use nalgebra::{convert, RealField, Vector3, Vector4};
 
 use super::path::TaskPath;
-use super::{PlanError, Quintic, TaskState};
+use super::scaling::TimeScaling;
+use super::{PlanError, TaskState};
 
 /// A point in cylindrical coordinates about the base Z axis, with the gripper's yaw.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -69,14 +72,13 @@ impl<T: RealField + Copy> Default for ArcLimits<T> {
 /// A rest-to-rest arc between two [`ArcPoint`]s.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArcMove<T: RealField + Copy> {
-    /// `[r, phi, z, yaw]` against time.
-    profile: Quintic<T, 4>,
+    /// `[r, phi, z, yaw]` at the start.
+    start: Vector4<T>,
+    /// `[r, phi, z, yaw]` from the start to the end.
+    delta: Vector4<T>,
+    /// How far along `delta` the move is, against time.
+    scaling: TimeScaling<T>,
 }
-
-/// A rest-to-rest quintic peaks at `15/8 D/T` in speed and `10/sqrt(3) D/T^2` in
-/// acceleration for a distance `D` over `T`.
-const QUINTIC_PEAK_SPEED: f64 = 1.875;
-const QUINTIC_PEAK_ACCELERATION: f64 = 5.773_502_691_896_258;
 
 impl<T: RealField + Copy> ArcMove<T> {
     /// The shortest arc from `start` to `end` within `limits`. The radius must
@@ -116,30 +118,33 @@ impl<T: RealField + Copy> ArcMove<T> {
             .abs()
             .max((delta.y * radius).abs())
             .max(delta.z.abs());
-        let peak_speed: T = convert(QUINTIC_PEAK_SPEED);
-        let peak_acceleration: T = convert(QUINTIC_PEAK_ACCELERATION);
-        let duration = (peak_speed * linear / limits.max_speed_m_s)
-            .max((peak_acceleration * linear / limits.max_acceleration_m_s2).sqrt())
-            .max(peak_speed * delta.w.abs() / limits.max_yaw_rate_rad_s)
-            .max(limits.min_duration_s)
-            .max(convert(1e-3));
-        let zero = Vector4::zeros();
+        // The limits as rates of progress along the move (a null distance
+        // leaves its limit unbounded but finite).
+        let tiny: T = convert(1e-9);
+        let max_rate = (limits.max_speed_m_s / linear.max(tiny))
+            .min(limits.max_yaw_rate_rad_s / delta.w.abs().max(tiny));
+        let max_acceleration = limits.max_acceleration_m_s2 / linear.max(tiny);
         Ok(Self {
-            profile: Quintic::new([a, zero, zero], [b, zero, zero], duration)?,
+            start: a,
+            delta,
+            scaling: TimeScaling::shortest(max_rate, max_acceleration, limits.min_duration_s),
         })
     }
 }
 
 impl<T: RealField + Copy> TaskPath<T> for ArcMove<T> {
     fn duration(&self) -> T {
-        self.profile.duration()
+        self.scaling.duration()
     }
 
     /// Chain rule of `p = (r cos phi, r sin phi, z)`: the velocity has a radial
     /// and a tangential part, the acceleration adds the centripetal `-r phi'^2`
     /// and the Coriolis `2 r' phi'` terms.
     fn sample(&self, t: T) -> TaskState<T> {
-        let [p, v, a] = self.profile.sample(t);
+        let progress = self.scaling.at(t);
+        let p = self.start + self.delta * progress.s;
+        let v = self.delta * progress.rate;
+        let a = self.delta * progress.acceleration;
         let (r, phi, z, yaw) = (p.x, p.y, p.z, p.w);
         let (rd, phid, zd, yawd) = (v.x, v.y, v.z, v.w);
         let (rdd, phidd, zdd, yawdd) = (a.x, a.y, a.z, a.w);

@@ -18,6 +18,7 @@ pub mod ik;
 pub mod intercept;
 pub mod path;
 pub mod quintic;
+pub mod scaling;
 
 mod error;
 
