@@ -74,28 +74,28 @@ fn every_fault_kind_ends_in_success_or_a_reported_stop_within_the_limits() {
 fn a_camera_knocked_after_calibration_stops_the_pick() {
     let mut e = turning();
     e.faults.camera_bump = Some(CameraBump {
-        at_s: 46.0,
+        at_s: 32.5,
         rotation_deg: 3.0,
         shift_m: 0.01,
     });
     let run = run_pick_in_process(&e, 1).unwrap();
-    assert!(calibrated(&run) < 46.0);
+    assert!(calibrated(&run) < 32.5);
     assert_stopped_for(&run, FaultCause::CameraMoved);
     // Four frames in a row at 5 Hz, after the first frame exposed after the bump.
     let (stopping, _) = stop_times(&run);
-    assert!((46.0..47.5).contains(&stopping), "noticed at {stopping} s");
+    assert!((32.5..34.0).contains(&stopping), "noticed at {stopping} s");
 }
 
 #[test]
 fn counts_the_conveyor_encoder_missed_stop_the_pick_before_the_grasp() {
     let mut e = turning();
     e.faults.missed_counts = Some(MissedCounts {
-        at_s: 46.0,
+        at_s: 32.5,
         counts: 60,
         instant: false,
     });
     let run = run_pick_in_process(&e, 1).unwrap();
-    assert!(calibrated(&run) < 46.0);
+    assert!(calibrated(&run) < 32.5);
     assert_stopped_for(&run, FaultCause::ConveyorSlip);
     assert!(run.grasp.is_none(), "no grasp on a wrong angle");
 }
@@ -149,12 +149,12 @@ fn a_control_stall_ends_in_a_stop_from_where_the_drives_held_the_arm() {
 fn a_short_vision_outage_is_ridden_through_and_a_long_one_stops() {
     let mut short = turning();
     short.faults.vision_outage = Some(FaultWindow {
-        at_s: 30.0,
+        at_s: 25.0,
         duration_s: 1.0,
     });
     let mut long = turning();
     long.faults.vision_outage = Some(FaultWindow {
-        at_s: 30.0,
+        at_s: 25.0,
         duration_s: 3.0,
     });
     let runs: Vec<_> = [short, long]
@@ -164,9 +164,9 @@ fn a_short_vision_outage_is_ridden_through_and_a_long_one_stops() {
     assert_eq!(runs[0].result, PickResult::Success);
     assert!(violations(&runs[0]).is_empty());
     assert_stopped_for(&runs[1], FaultCause::VisionStale);
-    // Stale 2 s after the last frame that arrived (exposed before 30 s, 80 ms late).
+    // Stale 2 s after the last frame that arrived (exposed before 25 s, 80 ms late).
     let (stopping, _) = stop_times(&runs[1]);
-    assert!((31.8..32.2).contains(&stopping), "stale at {stopping} s");
+    assert!((26.8..27.2).contains(&stopping), "stale at {stopping} s");
 }
 
 #[test]

@@ -85,6 +85,37 @@ fn a_pick_is_deterministic() {
 }
 
 #[test]
+fn the_search_halts_once_the_marks_have_crossed_the_view() {
+    // Seed 7's disc lies the way the search turns first, 1.3 rad round. The
+    // search sweeps on until the marks, seen 6 times, have left the view for
+    // 1 s, halts and comes back over them: 5.3 s, joint 1 down to -1.7 rad.
+    // (Before, it went on to the range's end, -2.69 rad, swept the whole range
+    // and came back: 22 s.)
+    let run = run_pick_in_process(&experiment("turning"), 7).unwrap();
+    assert_eq!(run.result, PickResult::Success, "{:?}", run.phases);
+    assert_safe(&run);
+    let search_end = run
+        .phases
+        .iter()
+        .find(|p| p.phase == PickPhase::Estimating)
+        .map(|p| p.t_s)
+        .unwrap();
+    let start = run.phases.first().map(|p| p.t_s).unwrap();
+    assert!(
+        search_end - start < 8.0,
+        "searched for {} s",
+        search_end - start
+    );
+    let lowest_q1 = run
+        .records
+        .iter()
+        .filter(|r| r.t_s < search_end)
+        .map(|r| r.q_rad[0])
+        .fold(f64::INFINITY, f64::min);
+    assert!(lowest_q1 > -2.2, "joint 1 went to {lowest_q1} rad");
+}
+
+#[test]
 fn seeded_random_workcells_are_picked() {
     let turning = experiment("turning");
     let progress = indicatif::ProgressBar::hidden();

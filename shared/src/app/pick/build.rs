@@ -11,6 +11,7 @@ use super::drop_off::check_drop_off;
 use super::job_slot::JobSlot;
 use super::motion::Motion;
 use super::pairing::FramePairer;
+use super::refresh::Refresh;
 use super::route::Route;
 use super::settings::PickSettings;
 use super::sightings::Sightings;
@@ -163,6 +164,7 @@ impl PickController {
             plan_lead_s: settings.plan_budget_s,
             calibration_rounds: 0,
             estimate_serial: 0,
+            refresh: Refresh::new(),
             qdd_commanded: JointVector::zeros(),
             tool_measured: Vector3::zeros(),
             tool_yaw_measured: 0.0,

@@ -83,7 +83,7 @@ impl PickController {
     /// The camera saw the marks: counted, and kept by the sightings.
     fn on_sighting(&mut self, sighting: &Sighting) {
         self.counters.effector_sightings = self.counters.effector_sightings.saturating_add(1);
-        self.sightings.record(sighting);
+        self.sightings.record(sighting, self.now_s);
         match self.step {
             Step::SearchApproach => self.route.seen_in(0),
             Step::SearchSweep(leg) | Step::SearchShift(leg) => self.route.seen_in(leg),

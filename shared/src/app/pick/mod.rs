@@ -41,6 +41,7 @@ pub mod motion;
 mod on_brakes_tests;
 pub mod pairing;
 mod period;
+mod refresh;
 mod route;
 pub mod search;
 pub mod settings;
@@ -70,6 +71,7 @@ use self::handoff::{ControlEvent, JobOutcome, JobRequest};
 use self::job_slot::JobSlot;
 use self::jobs::{ConveyorSnapshot, MAX_CALIBRATION_POSES};
 use self::motion::Motion;
+use self::refresh::Refresh;
 use self::route::{travel_z, Route};
 use self::settings::PickSettings;
 use self::sightings::Sightings;
@@ -222,6 +224,8 @@ pub struct PickController {
     estimate: Option<CellEstimate>,
     /// One more for every estimate.
     estimate_serial: u32,
+    /// The estimate refreshed during the intercept, and the blend to it.
+    refresh: Refresh,
     /// The poses the marks are shown at.
     poses: Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>,
     /// Rounds of calibration poses shown.
@@ -495,14 +499,19 @@ impl PickController {
             Step::PlaceLower => self.arc_to(self.route.lower_onto(&drop_off)),
             Step::ReturnRaise => self.arc_to(self.route.raise_from(&drop_off)),
             Step::ReturnTransfer => self.arc_to(self.route.home()),
-            Step::Stopping | Step::InterceptAbandoned => self.decelerate(),
+            Step::Stopping | Step::InterceptAbandoned | Step::SearchHalt => self.decelerate(),
         };
         match motion {
             Ok(motion) => self.motion = motion,
             // No task-space stop could be planned: the joint brake stops the
             // arm instead. (Holding the reference here would leave the pick
             // in `Stopping` for good: a hold never finishes.)
-            Err(_) if matches!(step, Step::Stopping | Step::InterceptAbandoned) => {
+            Err(_)
+                if matches!(
+                    step,
+                    Step::Stopping | Step::InterceptAbandoned | Step::SearchHalt
+                ) =>
+            {
                 self.engage_brake()
             }
             Err(_) => self.raise(FaultCause::PartUnreachable),
@@ -539,12 +548,34 @@ impl PickController {
         let finished = self.motion.finished(now);
         let settings = self.settings;
         match self.step {
+            Step::Intercept => self.ask_refresh(in_step),
+            Step::Track => self.take_refresh(),
+            _ => {}
+        }
+        self.refresh.expire(now, settings.estimate_fade_s);
+        match self.step {
             Step::Start | Step::Done | Step::Faulted => {}
+            // Seen often enough, and the arm has crossed the camera's view:
+            // the search halts there and comes back over the sightings,
+            // instead of sweeping on to the range's end first.
+            Step::SearchApproach | Step::SearchSweep(_) | Step::SearchShift(_)
+                if self.counters.effector_sightings >= settings.min_effector_sightings
+                    && self.sightings.unseen_for(now) >= settings.search_out_of_view_s =>
+            {
+                self.enter(Step::SearchHalt)
+            }
+            Step::SearchHalt if finished => {
+                if let Some(most_seen) = self.route.most_seen_sweep() {
+                    self.route.return_to(most_seen);
+                }
+                self.enter(Step::SearchReturn)
+            }
             Step::SearchApproach if finished => self.enter(Step::SearchSweep(0)),
             Step::SearchShift(leg) if finished => self.enter(Step::SearchSweep(leg)),
             Step::SearchSweep(leg) if finished => {
                 let next = leg.saturating_add(1);
                 if self.counters.effector_sightings >= settings.min_effector_sightings {
+                    // Seen often enough, the marks still in view at the end.
                     self.enter(Step::SearchReturn);
                 } else if self.route.sweep_start(next).is_some() {
                     // Not seen (often enough) at this radius: the next one.
@@ -684,6 +715,45 @@ impl PickController {
         }
     }
 
+    /// Asks for the intercept's refresh of the estimate when it is due: the
+    /// estimate's budget before the intercept ends (see [`refresh`]).
+    fn ask_refresh(&mut self, in_step: f32) {
+        let remaining_s = self.motion.duration_s().unwrap_or(0.0) - in_step;
+        let lead_s = self.settings.estimate_budget_s;
+        if self.jobs.is_idle() && self.refresh.due(remaining_s, lead_s) {
+            self.refresh.asked();
+            let request = JobRequest::Estimate {
+                preliminary: false,
+                time_us: self.last_time_us,
+                start_pose: self.route.start_pose(),
+                q_now: self.observer.q(),
+            };
+            self.request(request, lead_s);
+        }
+    }
+
+    /// Adopts the refreshed estimate if it has come, is sure of the part and
+    /// agrees with the estimate in use; otherwise the pick keeps that one.
+    fn take_refresh(&mut self) {
+        let Some(JobOutcome::Estimate(Ok((fresh, _)))) = self.jobs.take_ready(self.now_s) else {
+            return;
+        };
+        let (Some(old), Some(conveyor)) = (self.estimate, self.conveyor_state) else {
+            return;
+        };
+        let agrees = refresh::agrees(
+            &old,
+            &fresh,
+            conveyor.theta_wrapped,
+            self.settings.refresh_max_shift_m,
+        );
+        if agrees && self.sure_to_grasp(&fresh.report) {
+            self.refresh.replaced(old, self.now_s);
+            self.estimate = Some(fresh);
+            self.estimate_serial = self.estimate_serial.wrapping_add(1);
+        }
+    }
+
     /// Whether the estimate's own uncertainty of the part in the base frame
     /// leaves it well inside the gripper's capture: a wrong part position is
     /// a missed grasp, and more data is what shrinks it.
@@ -739,6 +809,7 @@ impl PickController {
             }
             Some(JobOutcome::Plan(Ok((plan, prediction)))) => {
                 self.intercept_attempts = self.intercept_attempts.saturating_add(1);
+                self.refresh.rearm();
                 self.window_omega = prediction.omega;
                 self.window_settle_max_s = prediction.settle_max_s;
                 self.motion = Motion::Intercept {

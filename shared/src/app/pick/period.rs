@@ -245,7 +245,12 @@ impl PickController {
     fn part_now(&self) -> Option<TaskState<f32>> {
         let estimate = self.estimate.as_ref()?;
         let state = self.conveyor_state?;
-        Some(estimate.grasp_point(state.theta_wrapped, state.omega, state.alpha))
+        Some(self.refresh.grasp_point(
+            estimate,
+            [state.theta_wrapped, state.omega, state.alpha],
+            self.now_s,
+            self.settings.estimate_fade_s,
+        ))
     }
 
     /// The period's telemetry, when it is due.

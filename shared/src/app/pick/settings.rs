@@ -23,6 +23,12 @@ pub struct PickSettings {
     /// than `min_effector_sightings`, the arm goes back over where they were
     /// seen most and holds there this long for more, s.
     pub search_dwell_s: f32,
+    /// Seen often enough, the marks count as out of the camera's view after
+    /// this long unseen: the search halts and goes back over where they were
+    /// seen, s. The first estimate needs the sightings of a whole crossing
+    /// of the view: from the few at its edge where the count is first
+    /// reached, the disc's height came out 20 cm off.
+    pub search_out_of_view_s: f32,
     /// Sightings of the marks needed before the first estimate.
     pub min_effector_sightings: u32,
     /// Grasp-point heights above the part's top at which the marks are shown for
@@ -193,6 +199,12 @@ pub struct PickSettings {
     pub max_conveyor_speed_change_fraction: f32,
     /// Intercepts planned for one part before the pick gives up (PartUnreachable).
     pub max_intercept_attempts: u8,
+    /// A refreshed estimate replaces the one in use over this long, s: the
+    /// part's state blends from one to the other (see `refresh`).
+    pub estimate_fade_s: f32,
+    /// A refreshed estimate that moves the grasp point further than this is
+    /// not adopted, m (twice the gripper's horizontal capture).
+    pub refresh_max_shift_m: f32,
     /// Before the calibration is accepted the flange goes at most this far
     /// below the lowest height at which the camera has seen the gripper's
     /// marks (BelowSafeHeight otherwise): it descends to the calibration
@@ -208,6 +220,7 @@ impl Default for PickSettings {
             search_radius_step_m: 0.2,
             search_max_stretch: 0.9,
             search_dwell_s: 4.0,
+            search_out_of_view_s: 1.0,
             min_effector_sightings: 6,
             calibration_heights_m: [0.35, 0.20, 0.08],
             calibration_dwell_s: 0.6,
@@ -264,6 +277,8 @@ impl Default for PickSettings {
             max_conveyor_speed_change_fraction: 0.2,
             max_intercept_attempts: 3,
             max_descent_step_m: 0.20,
+            estimate_fade_s: 0.5,
+            refresh_max_shift_m: 0.01,
         }
     }
 }

@@ -21,6 +21,8 @@ pub(super) struct Sightings {
     /// it saw them.
     known_clear_flange_z: f32,
     seen_marks: bool,
+    /// When the marks were last seen, s (the pick's clock).
+    last_seen_s: f32,
 }
 
 impl Sightings {
@@ -30,6 +32,7 @@ impl Sightings {
             direction: [0.0; 2],
             known_clear_flange_z: f32::INFINITY,
             seen_marks: false,
+            last_seen_s: f32::NEG_INFINITY,
         }
     }
 
@@ -42,9 +45,10 @@ impl Sightings {
         }
     }
 
-    /// The camera saw the marks: the disc is that way round the base axis,
-    /// and the flange has been this low in the camera's view.
-    pub(super) fn record(&mut self, sighting: &Sighting) {
+    /// The camera saw the marks at `now_s`: the disc is that way round the
+    /// base axis, and the flange has been this low in the camera's view.
+    pub(super) fn record(&mut self, sighting: &Sighting, now_s: f32) {
+        self.last_seen_s = now_s;
         let [x, y] = sighting.direction_xy;
         let [sx, sy] = self.direction;
         self.direction = [sx + x, sy + y];
@@ -56,6 +60,12 @@ impl Sightings {
             }
             self.seen_marks = true;
         }
+    }
+
+    /// How long the marks have gone unseen at `now_s`, s (infinite before
+    /// the first sighting).
+    pub(super) fn unseen_for(&self, now_s: f32) -> f32 {
+        now_s - self.last_seen_s
     }
 
     /// The sightings' mean azimuth round the base axis (where the disc is).

@@ -17,6 +17,9 @@ pub(super) enum Step {
     SearchShift(u8),
     /// Back over where the marks were seen, on the radius they were seen from.
     SearchReturn,
+    /// The camera has seen the marks often enough and they have left its
+    /// view: the sweep comes to rest, to go back over them.
+    SearchHalt,
     EstimatePreliminary,
     CalibrateMove(u8),
     CalibrateDwell(u8),
@@ -49,7 +52,8 @@ impl Step {
             Self::SearchApproach
             | Self::SearchSweep(_)
             | Self::SearchShift(_)
-            | Self::SearchReturn => PickPhase::SearchEffector,
+            | Self::SearchReturn
+            | Self::SearchHalt => PickPhase::SearchEffector,
             Self::CalibrateMove(_) | Self::CalibrateDwell(_) => PickPhase::CalibrateBase,
             Self::EstimatePreliminary | Self::EstimateFinal => PickPhase::Estimating,
             Self::Locate | Self::InterceptAbandoned | Self::Relocate => PickPhase::Locate,
@@ -75,6 +79,7 @@ impl Step {
                 | Self::SearchSweep(_)
                 | Self::SearchShift(_)
                 | Self::SearchReturn
+                | Self::SearchHalt
                 | Self::CalibrateMove(_)
                 | Self::CalibrateDwell(_)
                 | Self::Locate

@@ -6,7 +6,7 @@ use super::PickController;
 use crate::protocol::CalibrationReport;
 use crate::test_cell::test_cell_config;
 
-fn report(horizontal_m: f32, vertical_m: f32, yaw_rad: f32) -> CalibrationReport {
+pub(super) fn report(horizontal_m: f32, vertical_m: f32, yaw_rad: f32) -> CalibrationReport {
     CalibrationReport {
         time_us: 0,
         camera_height_m: 2.5,
