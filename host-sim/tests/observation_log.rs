@@ -380,13 +380,17 @@ fn a_30_hz_log_replays_with_the_controllers_adoptions() {
         "{} frames before the final estimate",
         provenance.log_frames
     );
-    // Adopted twice: the camera and the part alone when the store filled
-    // (256 frames with detections, 8.5 s into the search), then the
-    // preliminary estimate.
+    // Adopted three times: the camera and the part alone when the store
+    // filled (256 frames with detections, 8.5 s into the search), then the
+    // preliminary and the final estimates; the estimate refreshed during
+    // the intercept is the log's.
     let adopted = &provenance.adopted_after_frames;
-    assert_eq!(adopted.len(), 2, "{adopted:?}");
+    assert_eq!(adopted.len(), 3, "{adopted:?}");
     assert!((256..300).contains(&adopted[0]), "{adopted:?}");
-    assert!(adopted[1] > adopted[0], "{adopted:?}");
+    assert!(
+        adopted[1] > adopted[0] && adopted[2] > adopted[1],
+        "{adopted:?}"
+    );
     let report = logged.run.calibrations.last().unwrap().report;
     assert!(report.frames_folded > 100, "{report:?}");
 

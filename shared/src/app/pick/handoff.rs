@@ -128,6 +128,8 @@ pub struct DiscView {
     pub centre_px: Option<[f32; 2]>,
     /// Where the camera saw the reference mark, if it did.
     pub reference_px: Option<[f32; 2]>,
+    /// The frame, given to the calibrator, showed the part's features.
+    pub part_seen: bool,
 }
 
 /// Where the camera saw the gripper's marks, from the encoders latched at

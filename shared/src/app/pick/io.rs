@@ -65,6 +65,9 @@ impl PickController {
                 if let Some(sighting) = sighting {
                     self.on_sighting(sighting);
                 }
+                if view.is_some_and(|view| view.part_seen) {
+                    self.sightings.part_seen();
+                }
             }
             VisionNews::Unpaired => {
                 self.counters.frames_unpaired = self.counters.frames_unpaired.saturating_add(1);

@@ -555,12 +555,15 @@ impl PickController {
         self.refresh.expire(now, settings.estimate_fade_s);
         match self.step {
             Step::Start | Step::Done | Step::Faulted => {}
-            // Seen often enough, and the arm has crossed the camera's view:
-            // the search halts there and comes back over the sightings,
-            // instead of sweeping on to the range's end first.
+            // Seen often enough, the arm has crossed the camera's view and
+            // the camera has shown the part: the search halts there and
+            // comes back over the sightings, instead of sweeping on to the
+            // range's end first. (Holding over the disc for the part instead
+            // hid the disc from the camera.)
             Step::SearchApproach | Step::SearchSweep(_) | Step::SearchShift(_)
                 if self.counters.effector_sightings >= settings.min_effector_sightings
-                    && self.sightings.unseen_for(now) >= settings.search_out_of_view_s =>
+                    && self.sightings.unseen_for(now) >= settings.search_out_of_view_s
+                    && self.sightings.part_frames() >= settings.min_part_frames =>
             {
                 self.enter(Step::SearchHalt)
             }
@@ -575,8 +578,13 @@ impl PickController {
             Step::SearchSweep(leg) if finished => {
                 let next = leg.saturating_add(1);
                 if self.counters.effector_sightings >= settings.min_effector_sightings {
-                    // Seen often enough, the marks still in view at the end.
-                    self.enter(Step::SearchReturn);
+                    // Seen often enough: back over the marks once the camera
+                    // has shown the part (held here, clear of the disc), or
+                    // after `part_wait_s` (the estimate then says what it lacks).
+                    let held_s = in_step - self.motion.duration_s().unwrap_or(0.0);
+                    if held_s >= settings.part_wait_s {
+                        self.enter(Step::SearchReturn);
+                    }
                 } else if self.route.sweep_start(next).is_some() {
                     // Not seen (often enough) at this radius: the next one.
                     self.enter(Step::SearchShift(next));

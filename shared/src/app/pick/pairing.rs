@@ -38,6 +38,7 @@ fn disc_view(frame: &CameraFeatureFrame, theta: f64) -> Option<DiscView> {
         theta: theta as f32,
         centre_px,
         reference_px,
+        part_seen: false,
     })
 }
 
@@ -152,6 +153,10 @@ impl FramePairer {
                 direction_xy: [(x / norm) as f32, (y / norm) as f32],
                 mark_z_m: z as f32,
             })
+        });
+        let view = view.map(|view| DiscView {
+            part_seen: observation.part_px.is_some(),
+            ..view
         });
         Ok(Paired {
             news: VisionNews::Paired { sighting, view },

@@ -29,6 +29,13 @@ pub struct PickSettings {
     /// of the view: from the few at its edge where the count is first
     /// reached, the disc's height came out 20 cm off.
     pub search_out_of_view_s: f32,
+    /// Frames showing the part before the search halts: the first
+    /// estimate needs it. At a sweep's end the arm holds, clear of the
+    /// disc, until the camera has shown it this often, or for `part_wait_s`
+    /// at most (then the estimate says what it lacks).
+    pub min_part_frames: u32,
+    /// See `min_part_frames`, s.
+    pub part_wait_s: f32,
     /// Sightings of the marks needed before the first estimate.
     pub min_effector_sightings: u32,
     /// Grasp-point heights above the part's top at which the marks are shown for
@@ -221,6 +228,8 @@ impl Default for PickSettings {
             search_max_stretch: 0.9,
             search_dwell_s: 4.0,
             search_out_of_view_s: 1.0,
+            min_part_frames: 10,
+            part_wait_s: 30.0,
             min_effector_sightings: 6,
             calibration_heights_m: [0.35, 0.20, 0.08],
             calibration_dwell_s: 0.6,

@@ -2,7 +2,7 @@
 //! any calibration: which way round the base axis the disc is (the mean
 //! direction of the sightings), and how low the flange has been while the
 //! camera saw the marks, so that nothing goes far below a height known to be
-//! clear of the disc and the part.
+//! clear of the disc and the part; and whether the camera has shown the part.
 
 use super::handoff::Sighting;
 use crate::app::tool::EFFECTOR_MARKS_FLANGE_M;
@@ -23,6 +23,8 @@ pub(super) struct Sightings {
     seen_marks: bool,
     /// When the marks were last seen, s (the pick's clock).
     last_seen_s: f32,
+    /// Frames given to the calibrator that showed the part's features.
+    part_frames: u32,
 }
 
 impl Sightings {
@@ -33,6 +35,7 @@ impl Sightings {
             known_clear_flange_z: f32::INFINITY,
             seen_marks: false,
             last_seen_s: f32::NEG_INFINITY,
+            part_frames: 0,
         }
     }
 
@@ -60,6 +63,18 @@ impl Sightings {
             }
             self.seen_marks = true;
         }
+    }
+
+    /// A frame given to the calibrator showed the part.
+    pub(super) fn part_seen(&mut self) {
+        self.part_frames = self.part_frames.saturating_add(1);
+    }
+
+    /// Frames so far that showed the part: the first estimate needs it
+    /// (through images the front end labels the part only once it has
+    /// followed it round with the disc, up to 12 s after the disc).
+    pub(super) fn part_frames(&self) -> u32 {
+        self.part_frames
     }
 
     /// How long the marks have gone unseen at `now_s`, s (infinite before

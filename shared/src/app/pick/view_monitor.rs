@@ -296,6 +296,7 @@ mod tests {
                 c + k * theta_true.cos() + shift_px,
                 c - k * theta_true.sin(),
             ]),
+            part_seen: true,
         }
     }
 
