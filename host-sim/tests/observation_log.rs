@@ -380,17 +380,14 @@ fn a_30_hz_log_replays_with_the_controllers_adoptions() {
         "{} frames before the final estimate",
         provenance.log_frames
     );
-    // Adopted three times: the camera and the part alone when the store
-    // filled (256 frames with detections, 8.5 s into the search), then the
-    // preliminary and the final estimates; the estimate refreshed during
-    // the intercept is the log's.
+    // Adopted at the camera and the part alone when the store filled (256
+    // frames with detections, 8.5 s into the search), then at each estimate
+    // the controller reported before the log's (the preliminary, and the
+    // final one when an intercept long enough for a refresh followed it).
     let adopted = &provenance.adopted_after_frames;
-    assert_eq!(adopted.len(), 3, "{adopted:?}");
+    assert_eq!(adopted.len(), logged.run.calibrations.len(), "{adopted:?}");
     assert!((256..300).contains(&adopted[0]), "{adopted:?}");
-    assert!(
-        adopted[1] > adopted[0] && adopted[2] > adopted[1],
-        "{adopted:?}"
-    );
+    assert!(adopted.windows(2).all(|w| w[0] < w[1]), "{adopted:?}");
     let report = logged.run.calibrations.last().unwrap().report;
     assert!(report.frames_folded > 100, "{report:?}");
 

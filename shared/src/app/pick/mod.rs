@@ -85,7 +85,7 @@ use super::tool::TOOL_LENGTH_M;
 use crate::calibration::SelfCalibrator;
 use crate::control::TaskSpaceController;
 use crate::fusion::{ConveyorFilter, ConveyorMeanSpeed, ConveyorState};
-use crate::planning::{ArcPoint, PlanError, TaskState};
+use crate::planning::{ArcLimits, ArcPoint, PlanError, TaskState};
 use crate::protocol::{ActuatorCommand, CalibrationReport, FaultCause, GripperCommand};
 use crate::robot::{JointVector, Puma560};
 
@@ -339,7 +339,18 @@ impl PickController {
 
     /// An arc from the present reference (at rest) to `target`.
     fn arc_to(&self, target: ArcPoint<f32>) -> Result<Motion, PlanError> {
-        self.route.arc(&self.reference, target, self.now_s)
+        self.route
+            .arc(&self.reference, target, self.now_s, &ArcLimits::default())
+    }
+
+    /// An arc of the search: no faster than `search_speed_m_s`, so the marks
+    /// stay in the camera's view for enough frames to be labelled.
+    fn search_arc_to(&self, target: ArcPoint<f32>) -> Result<Motion, PlanError> {
+        let limits = ArcLimits {
+            max_speed_m_s: self.settings.search_speed_m_s,
+            ..ArcLimits::default()
+        };
+        self.route.arc(&self.reference, target, self.now_s, &limits)
     }
 
     /// Asks the worker for `request`, its outcome applied `budget_s` from now.
@@ -383,7 +394,7 @@ impl PickController {
                     _ => 0,
                 };
                 match self.route.sweep_start(leg) {
-                    Some(target) => self.arc_to(target),
+                    Some(target) => self.search_arc_to(target),
                     None => Err(PlanError::InvalidLimits {
                         what: "the search has no such sweep",
                     }),
@@ -392,7 +403,7 @@ impl PickController {
             Step::SearchSweep(leg) => {
                 self.route.sweeping(leg);
                 match self.route.sweep_end(leg) {
-                    Some(target) => self.arc_to(target),
+                    Some(target) => self.search_arc_to(target),
                     None => Err(PlanError::InvalidLimits {
                         what: "the search has no such sweep",
                     }),
@@ -728,7 +739,8 @@ impl PickController {
     fn ask_refresh(&mut self, in_step: f32) {
         let remaining_s = self.motion.duration_s().unwrap_or(0.0) - in_step;
         let lead_s = self.settings.estimate_budget_s;
-        if self.jobs.is_idle() && self.refresh.due(remaining_s, lead_s) {
+        let track_s = self.settings.track_settle_s;
+        if self.jobs.is_idle() && self.refresh.due(remaining_s, lead_s, track_s) {
             self.refresh.asked();
             let request = JobRequest::Estimate {
                 preliminary: false,

@@ -39,8 +39,11 @@ impl Refresh {
     /// Whether to ask for the refresh now, `remaining_s` before the
     /// intercept ends: once per intercept, `lead_s` (the estimate's budget)
     /// ahead, so it lands as the tracking starts with the newest frames.
-    pub(super) fn due(&self, remaining_s: f32, lead_s: f32) -> bool {
-        !self.requested && remaining_s <= lead_s
+    /// An intercept shorter than that less the tracking (`track_s`) gets
+    /// none: it would land on the descent, and the part stays as the plan
+    /// had it from there to the grasp.
+    pub(super) fn due(&self, remaining_s: f32, lead_s: f32, track_s: f32) -> bool {
+        !self.requested && remaining_s <= lead_s && remaining_s + track_s >= lead_s
     }
 
     /// The refresh has been asked for.
@@ -186,13 +189,15 @@ mod tests {
     }
 
     #[test]
-    fn one_refresh_is_asked_for_per_intercept_a_budget_before_its_end() {
+    fn one_refresh_is_asked_for_per_intercept_to_land_while_tracking() {
         let mut refresh = Refresh::new();
-        assert!(!refresh.due(3.0, 1.0));
-        assert!(refresh.due(0.9, 1.0));
+        assert!(!refresh.due(3.0, 1.0, 0.3));
+        assert!(refresh.due(0.9, 1.0, 0.3));
         refresh.asked();
-        assert!(!refresh.due(0.5, 1.0));
+        assert!(!refresh.due(0.8, 1.0, 0.3));
         refresh.rearm();
-        assert!(refresh.due(0.5, 1.0));
+        assert!(refresh.due(0.8, 1.0, 0.3));
+        // Too short to land before the tracking ends: none.
+        assert!(!refresh.due(0.6, 1.0, 0.3));
     }
 }

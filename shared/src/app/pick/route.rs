@@ -114,10 +114,11 @@ impl Route {
         from: &TaskState<f32>,
         target: ArcPoint<f32>,
         now_s: f32,
+        limits: &ArcLimits<f32>,
     ) -> Result<Motion, PlanError> {
         let mut start = ArcPoint::from_position(&from.position, from.yaw);
         start.azimuth_rad = self.azimuth_near_start(start.azimuth_rad);
-        let path = ArcMove::new(&start, &target, &ArcLimits::default())?;
+        let path = ArcMove::new(&start, &target, limits)?;
         Ok(Motion::Arc {
             path,
             start_s: now_s,

@@ -23,6 +23,9 @@ pub struct PickSettings {
     /// than `min_effector_sightings`, the arm goes back over where they were
     /// seen most and holds there this long for more, s.
     pub search_dwell_s: f32,
+    /// The search's sweeps go no faster than this, m/s: through images the
+    /// front end labels the marks only after several frames in view.
+    pub search_speed_m_s: f32,
     /// Seen often enough, the marks count as out of the camera's view after
     /// this long unseen: the search halts and goes back over where they were
     /// seen, s. The first estimate needs the sightings of a whole crossing
@@ -227,6 +230,7 @@ impl Default for PickSettings {
             search_radius_step_m: 0.2,
             search_max_stretch: 0.9,
             search_dwell_s: 4.0,
+            search_speed_m_s: 0.35,
             search_out_of_view_s: 1.0,
             min_part_frames: 10,
             part_wait_s: 30.0,
