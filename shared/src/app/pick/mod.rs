@@ -592,8 +592,12 @@ impl PickController {
                     // Seen often enough: back over the marks once the camera
                     // has shown the part (held here, clear of the disc), or
                     // after `part_wait_s` (the estimate then says what it lacks).
+                    // (The marks may still be in view here: the halt above,
+                    // which waits for them to leave it, would never come.)
                     let held_s = in_step - self.motion.duration_s().unwrap_or(0.0);
-                    if held_s >= settings.part_wait_s {
+                    if self.sightings.part_frames() >= settings.min_part_frames
+                        || held_s >= settings.part_wait_s
+                    {
                         self.enter(Step::SearchReturn);
                     }
                 } else if self.route.sweep_start(next).is_some() {
