@@ -175,7 +175,8 @@ fn the_emulated_firmware_picks_the_part_as_the_in_process_controller_does() {
     assert!(gap < 0.005, "grasps {gap} m apart");
 
     assert_eq!(report.unit, CostUnit::Instructions);
-    assert!(report.control_ticks > 50_000, "{report:?}");
+    // 47,751 periods since the search halts once the marks have crossed the view.
+    assert!(report.control_ticks > 40_000, "{report:?}");
     assert!(report.jobs_run >= 3, "{report:?}");
     assert!(
         report.control_worst >= report.control_mean && report.control_mean > 1_000,

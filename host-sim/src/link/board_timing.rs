@@ -48,12 +48,16 @@ pub struct BoardTiming {
 /// first pass, 194 and 362 million with the fit's statistics taken from the
 /// covariance's pass, 62 and 121 million with the start's homography from
 /// moment sums, passes over the points made in f32 where no cost is compared,
-/// and the start's robust loops stopped once their inlier sets repeat.
-pub const MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS: u64 = 61_672_120;
+/// and the start's robust loops stopped once their inlier sets repeat; 47
+/// and 97 million since the search halts once the marks have crossed the
+/// view (the estimates come 15 s sooner, over fewer frames; the bench's
+/// 656-frame cell, `BENCH_M4_ONLY=estimate bench-m4/run.sh`, costs 138 and
+/// 147 million).
+pub const MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS: u64 = 47_016_840;
 /// See [`MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS`].
-pub const MEASURED_ESTIMATE_FINAL_INSTRUCTIONS: u64 = 120_687_520;
+pub const MEASURED_ESTIMATE_FINAL_INSTRUCTIONS: u64 = 97_366_200;
 /// See [`MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS`].
-pub const MEASURED_PLAN_INSTRUCTIONS: u64 = 61_099_240;
+pub const MEASURED_PLAN_INSTRUCTIONS: u64 = 50_791_360;
 
 /// Cycles an instruction, the pick period's on the cycle model
 /// (docs/performance.md, "Cycles on the STM32F407"): 2.03. The jobs' soft
