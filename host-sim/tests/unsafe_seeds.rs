@@ -199,3 +199,14 @@ fn a_stall_brakes_the_wrist_within_its_rating() {
         t.result
     );
 }
+
+/// The search halted on its way to joint 1's end of the sweep (seed 1,
+/// trial 310, which adds 1 % gross outliers): the halt runs on for half
+/// its start speed times its duration and took joint 1 to 0.5 deg of its
+/// stop. Within its last `stop_s` a sweep now ends instead of halting.
+#[test]
+fn a_search_that_halts_near_the_sweeps_end_keeps_joint_1_off_its_stop() {
+    let t = replay(1, 310, FaultKind::Outliers1);
+    assert!(t.success, "{}", t.result);
+    assert_keeps_the_wide_layout_margin(&t);
+}

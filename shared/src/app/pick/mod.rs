@@ -571,10 +571,16 @@ impl PickController {
             // comes back over the sightings, instead of sweeping on to the
             // range's end first. (Holding over the disc for the part instead
             // hid the disc from the camera.)
+            // A halt runs on half its start speed times `stop_s`: within the
+            // last `stop_s` of a sweep it would carry joint 1 past the sweep's
+            // end towards its stop (0.5 deg from it), so there the sweep ends.
             Step::SearchApproach | Step::SearchSweep(_) | Step::SearchShift(_)
                 if self.counters.effector_sightings >= settings.min_effector_sightings
                     && self.sightings.unseen_for(now) >= settings.search_out_of_view_s
-                    && self.sightings.part_frames() >= settings.min_part_frames =>
+                    && self.sightings.part_frames() >= settings.min_part_frames
+                    && (finished
+                        || self.motion.duration_s().unwrap_or(0.0) - in_step
+                            >= settings.stop_s) =>
             {
                 self.enter(Step::SearchHalt)
             }
