@@ -353,6 +353,12 @@ impl PickController {
         self.route.arc(&self.reference, target, self.now_s, &limits)
     }
 
+    /// How long the step's motion has left `in_step` into the step, s
+    /// (negative: how long it has held its end; a hold has no length).
+    fn motion_left_s(&self, in_step: f32) -> f32 {
+        self.motion.duration_s().unwrap_or(0.0) - in_step
+    }
+
     /// Asks the worker for `request`, its outcome applied `budget_s` from now.
     fn request(&mut self, request: JobRequest, budget_s: f32) {
         let ticket = self.jobs.open(request, self.now_s + budget_s);
@@ -578,9 +584,7 @@ impl PickController {
                 if self.counters.effector_sightings >= settings.min_effector_sightings
                     && self.sightings.unseen_for(now) >= settings.search_out_of_view_s
                     && self.sightings.part_frames() >= settings.min_part_frames
-                    && (finished
-                        || self.motion.duration_s().unwrap_or(0.0) - in_step
-                            >= settings.stop_s) =>
+                    && (finished || self.motion_left_s(in_step) >= settings.stop_s) =>
             {
                 self.enter(Step::SearchHalt)
             }
@@ -600,7 +604,7 @@ impl PickController {
                     // after `part_wait_s` (the estimate then says what it lacks).
                     // (The marks may still be in view here: the halt above,
                     // which waits for them to leave it, would never come.)
-                    let held_s = in_step - self.motion.duration_s().unwrap_or(0.0);
+                    let held_s = -self.motion_left_s(in_step);
                     if self.sightings.part_frames() >= settings.min_part_frames
                         || held_s >= settings.part_wait_s
                     {
@@ -623,9 +627,7 @@ impl PickController {
             Step::SearchReturn if finished => {
                 if self.counters.effector_sightings >= settings.min_effector_sightings {
                     self.enter(Step::EstimatePreliminary);
-                } else if in_step
-                    >= self.motion.duration_s().unwrap_or(0.0) + settings.search_dwell_s
-                {
+                } else if -self.motion_left_s(in_step) >= settings.search_dwell_s {
                     // Held over where the marks were seen, and still too few.
                     self.raise(FaultCause::EffectorNotSeen);
                 }
@@ -747,7 +749,7 @@ impl PickController {
     /// Asks for the intercept's refresh of the estimate when it is due: the
     /// estimate's budget before the intercept ends (see [`refresh`]).
     fn ask_refresh(&mut self, in_step: f32) {
-        let remaining_s = self.motion.duration_s().unwrap_or(0.0) - in_step;
+        let remaining_s = self.motion_left_s(in_step);
         let lead_s = self.settings.estimate_budget_s;
         let track_s = self.settings.track_settle_s;
         if self.jobs.is_idle() && self.refresh.due(remaining_s, lead_s, track_s) {
