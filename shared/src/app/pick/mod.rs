@@ -85,7 +85,7 @@ use super::tool::TOOL_LENGTH_M;
 use crate::calibration::SelfCalibrator;
 use crate::control::TaskSpaceController;
 use crate::fusion::{ConveyorFilter, ConveyorMeanSpeed, ConveyorState};
-use crate::planning::{ArcLimits, ArcPoint, PlanError, TaskState};
+use crate::planning::{ArcLimits, ArcPoint, PlanError, TaskPath, TaskState};
 use crate::protocol::{ActuatorCommand, CalibrationReport, FaultCause, GripperCommand};
 use crate::robot::{JointVector, Puma560};
 
@@ -544,6 +544,17 @@ impl PickController {
             reference_speed_ratio: self.supervisor.reference_speed_ratio(),
         };
         let start = stop_start(&self.reference, &measured, &self.settings);
+        // An arc (a search sweep, a carry) with at most `stop_s` left comes
+        // to rest sooner than a stop would, and where it was planned to end:
+        // inside the joint ranges. A stop's quintic runs on for half its
+        // start speed times `stop_s`; from a sweep cruising towards its end
+        // that carried joint 1 to 0.5 deg of its stop.
+        if let Motion::Arc { path, start_s } = self.motion {
+            let left_s = start_s + path.duration() - self.now_s;
+            if start == self.reference && left_s <= self.settings.stop_s {
+                return Ok(self.motion);
+            }
+        }
         let near_part = matches!(
             self.motion,
             Motion::Follow { .. } | Motion::Intercept { .. }
