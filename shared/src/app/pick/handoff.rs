@@ -141,6 +141,9 @@ pub struct DiscView {
 pub struct Sighting {
     /// Unit vector (base frame, horizontal) towards the first mark.
     pub direction_xy: [f32; 2],
+    /// The same towards the marks' midpoint (the flange's axis: the marks
+    /// sit either side of it).
+    pub flange_direction_xy: [f32; 2],
     /// The first mark's height in the base frame, m.
     pub mark_z_m: f32,
 }

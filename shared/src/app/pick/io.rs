@@ -88,8 +88,10 @@ impl PickController {
         self.counters.effector_sightings = self.counters.effector_sightings.saturating_add(1);
         self.sightings.record(sighting, self.now_s);
         match self.step {
-            Step::SearchApproach => self.route.seen_in(0),
-            Step::SearchSweep(leg) | Step::SearchShift(leg) => self.route.seen_in(leg),
+            Step::SearchApproach => self.route.seen_in(0, sighting.flange_direction_xy),
+            Step::SearchSweep(leg) | Step::SearchShift(leg) => {
+                self.route.seen_in(leg, sighting.flange_direction_xy)
+            }
             _ => {}
         }
     }

@@ -343,11 +343,29 @@ impl PickController {
             .arc(&self.reference, target, self.now_s, &ArcLimits::default())
     }
 
+    /// Where the flange was when the camera saw the marks on sweep `leg`
+    /// (the look passes over it), or, if it saw none there, the first
+    /// mark's mean direction over the whole search.
+    fn seen_azimuth(&self, leg: u8) -> f32 {
+        self.route
+            .seen_azimuth(leg)
+            .unwrap_or_else(|| self.sightings.azimuth())
+    }
+
     /// An arc of the search: no faster than `search_speed_m_s`, so the marks
     /// stay in the camera's view for enough frames to be labelled.
     fn search_arc_to(&self, target: ArcPoint<f32>) -> Result<Motion, PlanError> {
+        self.search_arc_at(target, self.settings.search_speed_m_s)
+    }
+
+    /// An arc no faster than `max_speed_m_s`.
+    fn search_arc_at(
+        &self,
+        target: ArcPoint<f32>,
+        max_speed_m_s: f32,
+    ) -> Result<Motion, PlanError> {
         let limits = ArcLimits {
-            max_speed_m_s: self.settings.search_speed_m_s,
+            max_speed_m_s,
             ..ArcLimits::default()
         };
         self.route.arc(&self.reference, target, self.now_s, &limits)
@@ -418,8 +436,26 @@ impl PickController {
             Step::SearchReturn => {
                 // Back to where the marks were seen: over the disc, near the part.
                 let leg = self.route.sweep();
+                // (Towards the first mark's mean direction over the whole
+                // search: returning over the flange's on this sweep instead
+                // changed every cell's first estimate and measured no
+                // better, part at the grasp 2.37 against 2.24 mm at the
+                // 95th percentile through images, seed 11.)
                 match self.route.search_return(leg, self.sightings.azimuth()) {
                     Some(target) => self.arc_to(target),
+                    None => Err(PlanError::InvalidLimits {
+                        what: "the search has no such sweep",
+                    }),
+                }
+            }
+            Step::SearchLook(pass) => {
+                let leg = self.route.sweep();
+                let half_width = settings.search_look_half_width_m;
+                match self
+                    .route
+                    .search_look(leg, self.seen_azimuth(leg), pass, half_width)
+                {
+                    Some(target) => self.search_arc_at(target, settings.search_look_speed_m_s),
                     None => Err(PlanError::InvalidLimits {
                         what: "the search has no such sweep",
                     }),
@@ -638,8 +674,19 @@ impl PickController {
             Step::SearchReturn if finished => {
                 if self.counters.effector_sightings >= settings.min_effector_sightings {
                     self.enter(Step::EstimatePreliminary);
-                } else if -self.motion_left_s(in_step) >= settings.search_dwell_s {
-                    // Held over where the marks were seen, and still too few.
+                } else {
+                    self.enter(Step::SearchLook(0));
+                }
+            }
+            Step::SearchLook(pass) if finished => {
+                let next = pass.saturating_add(1);
+                if self.counters.effector_sightings >= settings.min_effector_sightings {
+                    self.enter(Step::EstimatePreliminary);
+                } else if next < settings.search_look_passes {
+                    self.enter(Step::SearchLook(next));
+                } else {
+                    // Passed slowly over where the marks were seen, and
+                    // still too few.
                     self.raise(FaultCause::EffectorNotSeen);
                 }
             }

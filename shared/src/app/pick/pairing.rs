@@ -147,10 +147,14 @@ impl FramePairer {
             }
         };
         let sighting = observation.effector.and_then(|e| {
-            let [x, y, z] = e.base_m[0];
-            let norm = libm::hypot(x, y);
-            (norm > 1e-6).then(|| Sighting {
-                direction_xy: [(x / norm) as f32, (y / norm) as f32],
+            let [[x0, y0, z], [x1, y1, _]] = e.base_m;
+            // The marks sit either side of the flange's axis: their
+            // midpoint is the flange's.
+            let (xf, yf) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+            let (norm, norm_flange) = (libm::hypot(x0, y0), libm::hypot(xf, yf));
+            (norm > 1e-6 && norm_flange > 1e-6).then(|| Sighting {
+                direction_xy: [(x0 / norm) as f32, (y0 / norm) as f32],
+                flange_direction_xy: [(xf / norm_flange) as f32, (yf / norm_flange) as f32],
                 mark_z_m: z as f32,
             })
         });

@@ -31,6 +31,8 @@ pub(super) struct Route {
     sweep: u8,
     /// Sightings of the marks during each sweep (and the step out to it).
     seen_per_sweep: [u16; MAX_SEARCH_LEGS],
+    /// The sum of the unit vectors towards the flange at those sightings.
+    seen_direction_per_sweep: [[f32; 2]; MAX_SEARCH_LEGS],
     /// The flange height of the carry to the drop-off and back.
     transfer_z: f32,
     /// Where the arm stood when the part was first located (the last
@@ -57,6 +59,7 @@ impl Route {
             search: SearchPlan::empty(),
             sweep: 0,
             seen_per_sweep: [0; MAX_SEARCH_LEGS],
+            seen_direction_per_sweep: [[0.0; 2]; MAX_SEARCH_LEGS],
             transfer_z: 0.0,
             locate_pose: None,
         }
@@ -146,11 +149,26 @@ impl Route {
         self.sweep
     }
 
-    /// The camera saw the marks during sweep `leg` (or the step out to it).
-    pub(super) fn seen_in(&mut self, leg: u8) {
+    /// The camera saw the marks during sweep `leg` (or the step out to it),
+    /// the flange towards `direction_xy` (a unit vector) from the base axis.
+    pub(super) fn seen_in(&mut self, leg: u8, direction_xy: [f32; 2]) {
         if let Some(count) = self.seen_per_sweep.get_mut(usize::from(leg)) {
             *count = count.saturating_add(1);
         }
+        if let Some(sum) = self.seen_direction_per_sweep.get_mut(usize::from(leg)) {
+            let [x, y] = direction_xy;
+            if x.is_finite() && y.is_finite() {
+                *sum = [sum[0] + x, sum[1] + y];
+            }
+        }
+    }
+
+    /// The flange's mean azimuth at the sightings of sweep `leg`, if any: on
+    /// that radius, where the camera sees the marks (the mean over every
+    /// sweep mixes radii whose views lie at other azimuths).
+    pub(super) fn seen_azimuth(&self, leg: u8) -> Option<f32> {
+        let [x, y] = *self.seen_direction_per_sweep.get(usize::from(leg))?;
+        (libm::hypotf(x, y) > 1e-3).then(|| libm::atan2f(y, x))
     }
 
     /// The sweep in which the camera saw the marks most often, if it saw them.
@@ -186,6 +204,24 @@ impl Route {
     pub(super) fn search_return(&self, leg: u8, azimuth: f32) -> Option<ArcPoint<f32>> {
         let sweep = self.search.leg(leg)?;
         Some(self.search_point(sweep.radius_m, sweep.within(azimuth)))
+    }
+
+    /// Where look pass `pass` over `azimuth` (where the marks were seen), on
+    /// sweep `leg`'s radius, ends: `half_width_m` of arc past it, one way on
+    /// even passes and the other on odd ones, within the sweep's joint-1 range.
+    pub(super) fn search_look(
+        &self,
+        leg: u8,
+        azimuth: f32,
+        pass: u8,
+        half_width_m: f32,
+    ) -> Option<ArcPoint<f32>> {
+        let sweep = self.search.leg(leg)?;
+        let half_rad = half_width_m / sweep.radius_m.max(LOOK_MIN_RADIUS_M);
+        let side = if pass.is_multiple_of(2) { 1.0 } else { -1.0 };
+        let end = sweep.within(azimuth) + side * half_rad;
+        let end = end.clamp(sweep.low_azimuth_rad, sweep.high_azimuth_rad);
+        Some(self.search_point(sweep.radius_m, end))
     }
 
     /// The flange arc point over `tool` (a grasp-point position), wrist as at the start.
@@ -293,3 +329,7 @@ pub(super) fn lift(
 
 /// Closer to the base axis than this a lift is not carried round it.
 const MIN_CARRY_RADIUS_M: f32 = 0.01;
+
+/// A look's half width turns to an angle at no less than this radius, m
+/// (the sweeps lie farther out: the shoulder's singularity).
+const LOOK_MIN_RADIUS_M: f32 = 0.1;

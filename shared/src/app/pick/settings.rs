@@ -21,8 +21,16 @@ pub struct PickSettings {
     pub search_max_stretch: f32,
     /// When every sweep has passed and the marks were seen, but fewer times
     /// than `min_effector_sightings`, the arm goes back over where they were
-    /// seen most and holds there this long for more, s.
-    pub search_dwell_s: f32,
+    /// seen most and passes to and fro over them this many times, slowly:
+    /// through images a pair is labelled once it has been seen in two frames
+    /// 5 cm apart, which a narrow view at the band's edge gives only to a
+    /// slow pass (holding still gave one place, and the view's edge).
+    pub search_look_passes: u8,
+    /// The look's passes reach this far either side of the sightings, m of
+    /// arc (wider than the marks' spread about the flange).
+    pub search_look_half_width_m: f32,
+    /// The look's passes go no faster than this, m/s.
+    pub search_look_speed_m_s: f32,
     /// The search's sweeps go no faster than this, m/s: through images the
     /// front end labels the marks only after several frames in view.
     pub search_speed_m_s: f32,
@@ -229,7 +237,9 @@ impl Default for PickSettings {
             search_joint1_margin_rad: 0.1,
             search_radius_step_m: 0.2,
             search_max_stretch: 0.9,
-            search_dwell_s: 4.0,
+            search_look_passes: 4,
+            search_look_half_width_m: 0.2,
+            search_look_speed_m_s: 0.06,
             search_speed_m_s: 0.35,
             search_out_of_view_s: 1.0,
             min_part_frames: 10,

@@ -17,6 +17,9 @@ pub(super) enum Step {
     SearchShift(u8),
     /// Back over where the marks were seen, on the radius they were seen from.
     SearchReturn,
+    /// Seen in passing only: slow pass `n` to and fro over where the marks
+    /// were seen, for the frames a label needs.
+    SearchLook(u8),
     /// The camera has seen the marks often enough and they have left its
     /// view: the sweep comes to rest, to go back over them.
     SearchHalt,
@@ -53,6 +56,7 @@ impl Step {
             | Self::SearchSweep(_)
             | Self::SearchShift(_)
             | Self::SearchReturn
+            | Self::SearchLook(_)
             | Self::SearchHalt => PickPhase::SearchEffector,
             Self::CalibrateMove(_) | Self::CalibrateDwell(_) => PickPhase::CalibrateBase,
             Self::EstimatePreliminary | Self::EstimateFinal => PickPhase::Estimating,
@@ -79,6 +83,7 @@ impl Step {
                 | Self::SearchSweep(_)
                 | Self::SearchShift(_)
                 | Self::SearchReturn
+                | Self::SearchLook(_)
                 | Self::SearchHalt
                 | Self::CalibrateMove(_)
                 | Self::CalibrateDwell(_)
