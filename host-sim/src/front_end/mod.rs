@@ -217,13 +217,14 @@ impl FrontEnd {
                 .filter(|p| matches!(p.label, MarkLabel::Effector(_)))
                 .count();
             eprintln!(
-                "eff frame {} base0 {:.3?} base1 {:.3?} pair {:?} sig {:?} proj {:?} labelled {}",
+                "eff frame {} base0 {:.3?} base1 {:.3?} pair {:?} sig {:?} proj {:?} rough {:.1?} labelled {}",
                 row.trigger_id,
                 effector_base_m[0],
                 effector_base_m[1],
                 self.identifier.effector_pair(),
                 self.identifier.effector_signature(),
                 self.identifier.projection_state(),
+                self.identifier.gripper_rough_px(&effector_base_m),
                 labelled
             );
         }

@@ -98,6 +98,22 @@ impl ImageVision {
             capture_time_us: (world.time_s().max(0.0) * 1e6).round() as u64,
             points: heapless::Vec::new(),
         };
+        // Diagnosis only: where the gripper's marks truly are, beside what
+        // `EFFECTOR_DEBUG` says the front end made of them (printed, never
+        // given to the controller).
+        if std::env::var_os("TRUTH_DEBUG").is_some() {
+            for m in frame
+                .truth
+                .marks
+                .iter()
+                .filter(|m| m.kind == "effector" && m.shows)
+            {
+                eprintln!(
+                    "true eff {} frame {trigger_id} at {:.1?} visible {}",
+                    m.index, m.image_px, m.visible
+                );
+            }
+        }
         let truth = std::slice::from_ref(&frame.truth);
         let judge = Judge::in_fixed_order(truth);
         let camera = &front_end.run.log.header.camera;

@@ -108,6 +108,8 @@ const RIGID_SHARE: f64 = 0.1;
 /// A mark's blob must have moved since the frame before as its projection
 /// did, within this, px.
 const MOTION_PX: f64 = 1.5;
+/// A mark within this of where it was seen is where its blob was, m.
+const REST_M: f64 = 0.002;
 /// The projection labels on its own once it holds this many points.
 const MIN_PROJECTION_POINTS: usize = 20;
 
@@ -207,6 +209,9 @@ pub struct EffectorMarks {
     /// The last pair's blobs (mark 0's, mark 1's) and their lights against
     /// the yardstick (diagnosis).
     pub last_pair: Option<([PixelPoint; 2], [f64; 2])>,
+    /// The last pair's blobs and the marks' base-frame centres then: while
+    /// the arm rests there, its marks are where these blobs were.
+    seen_at: Option<([PixelPoint; 2], [[f64; 3]; 2])>,
     /// The last pair's signature (angle, rad; scale) and what became of it
     /// (diagnosis: 0 stored unconfirmed, 1 confirmed, 2 agreed, 3 angle or
     /// scale off the confirmed one, 4 not rigid, 5 confirmed afresh).
@@ -245,6 +250,7 @@ impl EffectorMarks {
             previous_blob_px: [None; 2],
             refusals: [[0; 7]; 2],
             last_pair: None,
+            seen_at: None,
             last_signature: None,
         }
     }
@@ -253,6 +259,35 @@ impl EffectorMarks {
     /// once it is trusted (`None` before, or when a mark projects nowhere).
     pub fn projected_px(&self) -> [Option<PixelPoint>; 2] {
         self.previous_px
+    }
+
+    /// Where the marks at `base_m` are while the arm rests where a pair of
+    /// them was last seen (each mark within [`REST_M`] of its place then).
+    pub fn resting_px(&self, base_m: &[[f64; 3]; 2]) -> [Option<PixelPoint>; 2] {
+        let Some((pixels, then_m)) = self.seen_at else {
+            return [None, None];
+        };
+        let still = (0..2).all(|k| {
+            matches!((base_m.get(k), then_m.get(k)), (Some(a), Some(b)) if distance3(*a, *b) <= REST_M)
+        });
+        if still {
+            pixels.map(Some)
+        } else {
+            [None, None]
+        }
+    }
+
+    /// Where the marks at `base_m` lie roughly, where the projection does
+    /// not label them: by the projection however far from where it was
+    /// fitted (a DLT extrapolates a few pixels off), or before it is
+    /// trusted by the level plane's map of the sightings so far (see
+    /// [`BaseProjection::plane_px`]). Where a disc label is not to be given.
+    pub fn rough_px(&self, base_m: &[[f64; 3]; 2]) -> [Option<PixelPoint>; 2] {
+        if self.projection.trusted(PROJECTION_RMS_PX) {
+            base_m.map(|p| self.projection.project(p))
+        } else {
+            base_m.map(|p| self.projection.plane_px(p))
+        }
     }
 
     /// The projection's correspondences and RMS, px (diagnosis).
@@ -454,6 +489,7 @@ impl EffectorMarks {
                 * self.area_over_reference.get(k).copied().unwrap_or(f64::NAN))
         });
         self.last_pair = Some(([m0.pixel, m1.pixel], gains));
+        self.seen_at = Some(([m0.pixel, m1.pixel], *base_m));
         if !gains.iter().all(|g| (GAIN_MIN..=GAIN_MAX).contains(g)) {
             return [None, None];
         }

@@ -58,6 +58,10 @@ pub const MAX_TRACKS: usize = 48;
 /// Labels one frame can carry: centre, reference, the features, two effector marks.
 pub const MAX_LABELS: usize = 2 + MAX_PART_FEATURES + 2;
 
+/// No disc label within this of where the projection beyond where it was
+/// fitted, or the level plane's map, puts a gripper mark, px (their own
+/// errors, a few pixels, beside a mark's radius).
+const ROUGH_VETO_PX: f64 = 6.0;
 /// Frames a track survives unseen.
 const MAX_MISSES: u32 = 4;
 /// The recent fit predicts once it spans this arc, rad, and fits this well, px.
@@ -362,6 +366,13 @@ impl Identifier {
         self.effector.last_signature
     }
 
+    /// Where the gripper's marks at `effector_base_m` lie roughly, where
+    /// the projection does not label them (diagnosis; see
+    /// [`EffectorMarks::rough_px`]).
+    pub fn gripper_rough_px(&self, effector_base_m: &[[f64; 3]; 2]) -> [Option<PixelPoint>; 2] {
+        self.effector.rough_px(effector_base_m)
+    }
+
     /// This frame's pair of free blobs, if the pair stage saw one, with
     /// their lights against the yardstick (diagnosis).
     pub fn effector_pair(&self) -> Option<([PixelPoint; 2], [f64; 2])> {
@@ -409,7 +420,27 @@ impl Identifier {
 
         // Where the gripper's marks project now: a disc label there may be a
         // gripper mark standing in a disc mark's place, and is not given.
-        let gripper_px = self.effector.projected_px();
+        // Where the projection does not label them, it or the map of the
+        // search's level plane says it, less sharply (seed 11 of the images
+        // Monte Carlo: a gripper mark slid over the reference mark within a
+        // pixel of its prediction in cell 172, and half hid the centre
+        // mark below where the projection was fitted in cell 853).
+        // And where the arm rests where a pair of its marks was seen, they
+        // are where that pair's blobs were (a gripper mark at rest half over
+        // the reference mark: cell 274).
+        let projected = self.effector.projected_px();
+        let (gripper_px, veto_px) = if projected.iter().any(Option::is_some) {
+            (projected, effector::GATE_PX + OUTPUT_GATE_PX)
+        } else {
+            (self.effector.rough_px(effector_base_m), ROUGH_VETO_PX)
+        };
+        let resting_px = self.effector.resting_px(effector_base_m);
+        let vetoes = gripper_px.iter().flatten().map(|q| (q, veto_px)).chain(
+            resting_px
+                .iter()
+                .flatten()
+                .map(|q| (q, effector::GATE_PX + OUTPUT_GATE_PX)),
+        );
         for followed in self.tracks.iter() {
             if let (Some(label), Some(blob), true) = (followed.label, followed.blob, followed.sure)
             {
@@ -417,9 +448,10 @@ impl Identifier {
                     continue;
                 }
                 let p = followed.track.latest.1;
-                if gripper_px.iter().flatten().any(|q| {
-                    libm::hypot(p[0] - q[0], p[1] - q[1]) <= effector::GATE_PX + OUTPUT_GATE_PX
-                }) {
+                if vetoes
+                    .clone()
+                    .any(|(q, r)| libm::hypot(p[0] - q[0], p[1] - q[1]) <= r)
+                {
                     continue;
                 }
                 if let Some(Some((pixel, _, _))) = points.get(blob) {

@@ -28,8 +28,68 @@ const MIN_SPREAD_M: f64 = 0.01;
 const COVER_SPREADS: f64 = 4.0;
 const COVER_MARGIN_M: f64 = 0.04;
 
+/// Held points whose heights spread less than this (RMS, m) lie on one
+/// level plane (the search shows the marks at its travel height only): the
+/// DLT is degenerate there, and the plane's homography stands in for it.
+const PLANE_Z_SPREAD_M: f64 = 0.005;
+/// A base point within this of the plane's height is on it, m.
+const PLANE_TOLERANCE_M: f64 = 0.01;
+/// The plane's map is used this far beyond its points, m: it only keeps
+/// disc labels off where a gripper mark may be, and a far one that misses
+/// by more than the veto's radius costs nothing (the search's sightings
+/// cluster where the view is, the arm passes on).
+const PLANE_COVER_MARGIN_M: f64 = 0.3;
+/// Fewest held points for the plane's map (five sightings of two marks:
+/// eight unknowns).
+const MIN_PLANE_POINTS: usize = 10;
+/// The plane's map is used when it explains its points within this, px
+/// (the marks' heights differ by a few millimetres).
+const PLANE_RMS_PX: f64 = 1.0;
+
 type Matrix12 = SMatrix<f64, 12, 12>;
 type Vector12 = SVector<f64, 12>;
+type Matrix8 = SMatrix<f64, 8, 8>;
+type Vector8 = SVector<f64, 8>;
+
+/// The homography of held points on one level plane, from their `(x, y)`
+/// to their pinhole pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct PlaneMap {
+    /// The plane's height, m.
+    z_m: f64,
+    /// The held points' mean `(x, y)`, m (the map's origin).
+    origin_m: [f64; 2],
+    /// Their largest distance from it, m (the map is used no further out
+    /// than this plus [`PLANE_COVER_MARGIN_M`]).
+    reach_m: f64,
+    /// The homography `[h11 h12 h13 h21 h22 h23 h31 h32]` (`h33 = 1`) from
+    /// `(x, y)` about the origin, over `reach_m`, to the pixel less the
+    /// principal point over the focal length.
+    h: [f64; 8],
+    /// The pixel normalisation: principal point and focal length, px.
+    centre: PixelPoint,
+    scale: f64,
+}
+
+impl PlaneMap {
+    /// The pixel of `(x, y)` on the plane (`None` where the map sends it
+    /// to infinity).
+    fn at(&self, x: f64, y: f64) -> Option<PixelPoint> {
+        let reach = self.reach_m.max(1e-6);
+        let (dx, dy) = (
+            (x - self.origin_m[0]) / reach,
+            (y - self.origin_m[1]) / reach,
+        );
+        let [h11, h12, h13, h21, h22, h23, h31, h32] = self.h;
+        let w = h31 * dx + h32 * dy + 1.0;
+        if libm::fabs(w) < 1e-9 {
+            return None;
+        }
+        let u = (h11 * dx + h12 * dy + h13) / w * self.scale + self.centre[0];
+        let v = (h21 * dx + h22 * dy + h23) / w * self.scale + self.centre[1];
+        (u.is_finite() && v.is_finite()).then_some([u, v])
+    }
+}
 
 /// The correspondences and the current fit.
 #[derive(Debug, Clone)]
@@ -46,6 +106,8 @@ pub struct BaseProjection {
     /// along them, m, at the last fit.
     axes: nalgebra::Matrix3<f64>,
     spreads_m: [f64; 3],
+    /// The held points' level-plane map, when they all lie on one.
+    plane: Option<PlaneMap>,
 }
 
 impl BaseProjection {
@@ -61,6 +123,7 @@ impl BaseProjection {
             rms_px: f64::INFINITY,
             axes: nalgebra::Matrix3::identity(),
             spreads_m: [0.0; 3],
+            plane: None,
         }
     }
 
@@ -70,6 +133,7 @@ impl BaseProjection {
         self.next = 0;
         self.fit = None;
         self.rms_px = f64::INFINITY;
+        self.plane = None;
     }
 
     /// Correspondences held.
@@ -103,7 +167,7 @@ impl BaseProjection {
     /// Refits from the held correspondences; `None` when they are too few,
     /// too flat or inconsistent.
     pub fn refit(&mut self) -> Option<f64> {
-        self.fit = None;
+        let last_fit = self.fit.take();
         self.rms_px = f64::INFINITY;
         if self.count < MIN_POINTS {
             return None;
@@ -120,7 +184,22 @@ impl BaseProjection {
             scatter += d * d.transpose();
         }
         let spread = SymmetricEigen::try_new(scatter / n, 1e-15, 200)?;
+        self.plane = if libm::sqrt((scatter.m33 / n).max(0.0)) <= PLANE_Z_SPREAD_M {
+            self.plane_map(mean)
+        } else {
+            None
+        };
         if spread.eigenvalues.min() < MIN_SPREAD_M * MIN_SPREAD_M {
+            // Points gathered in a thin region (the gripper riding with the
+            // part at one height) cannot refit the DLT, nor do they unfit
+            // it: the last fit stands while it explains them.
+            self.fit = last_fit;
+            let rms = self.held_rms_px()?;
+            if rms.is_finite() {
+                self.rms_px = rms;
+                return Some(rms);
+            }
+            self.fit = None;
             return None;
         }
         self.axes = spread.eigenvectors;
@@ -166,23 +245,90 @@ impl BaseProjection {
         let smallest = eigen.eigenvalues.imin();
         let solution: Vector12 = eigen.eigenvectors.column(smallest).into_owned();
         self.fit = Some((solution, origin));
-        let mut sum = 0.0;
-        let mut projected_all = true;
-        for (p, px) in self.held() {
-            match self.project(*p) {
-                Some(q) => {
-                    let (du, dv) = (q[0] - px[0], q[1] - px[1]);
-                    sum += du * du + dv * dv;
-                }
-                None => projected_all = false,
-            }
-        }
-        if !projected_all {
+        let Some(rms) = self.held_rms_px() else {
             self.fit = None;
             return None;
+        };
+        self.rms_px = rms;
+        Some(rms)
+    }
+
+    /// The RMS reprojection error of the held points under the fit, px
+    /// (`None` without a fit or when a point projects nowhere).
+    fn held_rms_px(&self) -> Option<f64> {
+        self.fit.as_ref()?;
+        let mut sum = 0.0;
+        for (p, px) in self.held() {
+            let q = self.project(*p)?;
+            let (du, dv) = (q[0] - px[0], q[1] - px[1]);
+            sum += du * du + dv * dv;
         }
-        self.rms_px = libm::sqrt(sum / n);
-        Some(self.rms_px)
+        Some(libm::sqrt(sum / self.count.max(1) as f64))
+    }
+
+    /// The homography of the held points, all at the height of `mean`,
+    /// from their `(x, y)` to their pixels (least squares with `h33 = 1`,
+    /// about their mean and over their reach), if they are enough, spread
+    /// in the plane and explained by it.
+    fn plane_map(&self, mean: Vector3<f64>) -> Option<PlaneMap> {
+        if self.count < MIN_PLANE_POINTS {
+            return None;
+        }
+        let origin = [mean.x, mean.y];
+        let reach = self
+            .held()
+            .map(|(p, _)| libm::hypot(p[0] - origin[0], p[1] - origin[1]))
+            .fold(0.0, f64::max);
+        if !reach.is_finite() || reach <= 1e-3 {
+            return None;
+        }
+        let mut normal = Matrix8::zeros();
+        let mut rhs = Vector8::zeros();
+        for (p, px) in self.held() {
+            let (x, y) = ((p[0] - origin[0]) / reach, (p[1] - origin[1]) / reach);
+            let u = (px[0] - self.centre[0]) / self.scale;
+            let v = (px[1] - self.centre[1]) / self.scale;
+            let row_u = Vector8::from_column_slice(&[x, y, 1.0, 0.0, 0.0, 0.0, -u * x, -u * y]);
+            let row_v = Vector8::from_column_slice(&[0.0, 0.0, 0.0, x, y, 1.0, -v * x, -v * y]);
+            normal += row_u * row_u.transpose() + row_v * row_v.transpose();
+            rhs += row_u * u + row_v * v;
+        }
+        let solution = normal.cholesky()?.solve(&rhs);
+        let mut h = [0.0; 8];
+        for (slot, value) in h.iter_mut().zip(solution.iter()) {
+            *slot = *value;
+        }
+        let map = PlaneMap {
+            z_m: mean.z,
+            origin_m: origin,
+            reach_m: reach,
+            h,
+            centre: self.centre,
+            scale: self.scale,
+        };
+        let mut sum = 0.0;
+        for (p, px) in self.held() {
+            let q = map.at(p[0], p[1])?;
+            sum += (q[0] - px[0]) * (q[0] - px[0]) + (q[1] - px[1]) * (q[1] - px[1]);
+        }
+        let rms = libm::sqrt(sum / self.count as f64);
+        (rms.is_finite() && rms <= PLANE_RMS_PX).then_some(map)
+    }
+
+    /// Where a base-frame point on the level plane the held points lie on
+    /// projects, by the plane's affine map: `None` when they lie on none,
+    /// or the point is off the plane or beyond the held points' reach (by
+    /// [`PLANE_COVER_MARGIN_M`]). Before the DLT can be fitted this still says
+    /// where the gripper's marks are at the search's height.
+    pub fn plane_px(&self, base_m: [f64; 3]) -> Option<PixelPoint> {
+        let map = self.plane.as_ref()?;
+        let [dx, dy] = [base_m[0] - map.origin_m[0], base_m[1] - map.origin_m[1]];
+        let on_plane = libm::fabs(base_m[2] - map.z_m) <= PLANE_TOLERANCE_M;
+        let near = libm::hypot(dx, dy) <= map.reach_m + PLANE_COVER_MARGIN_M;
+        if !(on_plane && near) {
+            return None;
+        }
+        map.at(base_m[0], base_m[1])
     }
 
     /// The pinhole pixel of a base-frame point under the fit (`None`

@@ -37,6 +37,25 @@ fn the_projection_is_recovered_from_spread_points() {
     assert!(!projection.covers([q[0] + 0.6, q[1], q[2]]));
     assert!(!projection.covers([q[0], q[1], q[2] + 0.6]));
 
+    // Then a ride at one height fills the ring: it cannot refit the DLT,
+    // and the fit stands while it explains the ride's points.
+    let mut ridden = projection.clone();
+    for k in 0..48 {
+        let p = [0.5 + 0.004 * k as f64, 0.0, 0.15];
+        ridden.add(p, true_pixel(p));
+    }
+    assert!(ridden.refit().is_some_and(|rms| rms < 1e-6));
+    assert!(ridden.trusted(1.0));
+    // Not when they show the camera elsewhere.
+    let mut moved = projection.clone();
+    for k in 0..48 {
+        let p = [0.5 + 0.004 * k as f64, 0.0, 0.15];
+        let [u, v] = true_pixel(p);
+        moved.add(p, [u + 8.0, v]);
+    }
+    moved.refit();
+    assert!(!moved.trusted(1.0));
+
     // Points in a plane do not make a trusted projection.
     let mut flat = BaseProjection::new([127.5, 127.5], 290.0);
     for k in 0..20 {
@@ -44,6 +63,44 @@ fn the_projection_is_recovered_from_spread_points() {
         flat.add(p, true_pixel(p));
     }
     assert!(flat.refit().is_none());
+}
+
+#[test]
+fn points_on_one_level_plane_still_say_where_the_gripper_is_on_it() {
+    // The search shows the marks at its travel height only: the DLT is
+    // degenerate there, and the plane's affine map stands in for it.
+    let mut flat = BaseProjection::new([127.5, 127.5], 290.0);
+    for k in 0..20 {
+        let p = [
+            0.4 + 0.01 * k as f64,
+            -0.2 + 0.02 * (k % 5) as f64,
+            0.7 + 0.001 * (k % 3) as f64,
+        ];
+        flat.add(p, true_pixel(p));
+    }
+    assert!(flat.refit().is_none(), "no DLT from one plane");
+    // Within the plane's points and 0.16 m beyond them: within 3 px, well
+    // inside the 6 px veto (perspective bends the affine map, 2.1 px there
+    // under this camera tilted 16 deg).
+    for q in [[0.5, -0.15, 0.7], [0.75, -0.1, 0.705]] {
+        let [u, v] = flat.plane_px(q).unwrap();
+        let [tu, tv] = true_pixel(q);
+        assert!(
+            (u - tu).hypot(v - tv) < 3.0,
+            "{q:?}: {u} {v} against {tu} {tv}"
+        );
+    }
+    // Off the plane, or far from its points: nothing.
+    assert!(flat.plane_px([0.5, -0.15, 0.75]).is_none());
+    assert!(flat.plane_px([1.4, -0.15, 0.7]).is_none());
+    // Points at two heights make no plane.
+    let mut two = flat.clone();
+    for k in 0..6 {
+        let p = [0.4 + 0.02 * k as f64, -0.1, 0.5];
+        two.add(p, true_pixel(p));
+    }
+    two.refit();
+    assert!(two.plane_px([0.5, -0.15, 0.7]).is_none());
 }
 
 #[test]
@@ -308,6 +365,24 @@ mod gripper {
             }
         }
         assert!(stage.projection_state().0 >= 20);
+    }
+
+    #[test]
+    fn while_the_arm_rests_its_marks_are_where_its_last_pair_was_seen() {
+        let mut stage = stage();
+        let base = marks(3);
+        assert_eq!(stage.resting_px(&base), [None, None], "no pair seen yet");
+        let blobs = [Some(blob(base[0], 0)), Some(blob(base[1], 1))];
+        stage.identify(&blobs, &base, Some(YARDSTICK));
+        let seen = blobs.map(|b| b.map(|b| b.pixel));
+        assert_eq!(stage.resting_px(&base), seen);
+        // A mark hidden now (its place taken by a disc mark's blob): the
+        // pair is not seen, and the rest still says where the marks are.
+        stage.identify(&[Some(blob(base[0], 0))], &base, Some(YARDSTICK));
+        assert_eq!(stage.resting_px(&base), seen);
+        // Moved 5 mm: no longer.
+        let moved = base.map(|p| [p[0] + 0.005, p[1], p[2]]);
+        assert_eq!(stage.resting_px(&moved), [None, None]);
     }
 
     #[test]
