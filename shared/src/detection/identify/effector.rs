@@ -173,6 +173,11 @@ pub struct EffectorCandidate {
     pub flux: f64,
     /// No disc mark's, not ambiguous: it may be a gripper mark.
     pub free: bool,
+    /// Its track, however young, has held still in the disc's rotating
+    /// frame while the disc turned: a disc object (a feature, a distractor)
+    /// not yet known as one. The pair stage does not take it (a gripper
+    /// riding with the part, which the projection labels, would pass).
+    pub with_disc: bool,
 }
 
 /// The effector stage's state over a run.
@@ -443,7 +448,7 @@ impl EffectorMarks {
     ) -> [Option<LabelledPoint>; 2] {
         let mut free: Vec<usize, MAX_BLOBS> = Vec::new();
         for (i, b) in blobs.iter().enumerate() {
-            if b.is_some_and(|b| b.free) {
+            if b.is_some_and(|b| b.free && !b.with_disc) {
                 let _ = free.push(i);
             }
         }

@@ -62,6 +62,12 @@ pub const MAX_LABELS: usize = 2 + MAX_PART_FEATURES + 2;
 /// fitted, or the level plane's map, puts a gripper mark, px (their own
 /// errors, a few pixels, beside a mark's radius).
 const ROUGH_VETO_PX: f64 = 6.0;
+/// A young track whose last two observations lie this close in the disc's
+/// rotating frame, m, after the disc turned at least
+/// `WITH_DISC_MIN_TURN_RAD` between them, is a disc object (a gripper mark
+/// sweeping past moves centimetres in the rotating frame a frame).
+const WITH_DISC_M: f64 = 0.004;
+const WITH_DISC_MIN_TURN_RAD: f64 = 0.03;
 /// Frames a track survives unseen.
 const MAX_MISSES: u32 = 4;
 /// The recent fit predicts once it spans this arc, rad, and fits this well, px.
@@ -881,6 +887,24 @@ impl Identifier {
         }
     }
 
+    /// The track's last two observations are one point of the disc's
+    /// rotating frame, the disc having turned between them: a disc object
+    /// however young its track (before [`MIN_HITS`] no fit says it turns).
+    fn holds_still_on_disc(&self, track: &Track) -> bool {
+        let (Some(disc), Some((theta0, p0))) = (self.disc, track.previous) else {
+            return false;
+        };
+        let (theta1, p1) = track.latest;
+        let l = self.settings.reference_radius_m;
+        if libm::fabs(theta1 - theta0) < WITH_DISC_MIN_TURN_RAD {
+            return false;
+        }
+        match (disc.rotating(p0, theta0, l), disc.rotating(p1, theta1, l)) {
+            (Some(a), Some(b)) => libm::hypot(a[0] - b[0], a[1] - b[1]) <= WITH_DISC_M,
+            _ => false,
+        }
+    }
+
     /// A track at rest while the disc turned.
     fn still(&self, f: &Followed) -> bool {
         !f.on_arm
@@ -1231,9 +1255,12 @@ impl Identifier {
                 let on_disc = holder.is_some_and(|f| {
                     !f.on_arm && (f.label.is_some() || Self::turning(f) || self.still(f))
                 });
+                let with_disc =
+                    holder.is_some_and(|f| !f.on_arm && self.holds_still_on_disc(&f.track));
                 EffectorCandidate {
                     pixel,
                     flux,
+                    with_disc,
                     free: !on_disc
                         && !disc_marks
                             .iter()

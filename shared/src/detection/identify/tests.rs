@@ -221,6 +221,7 @@ mod gripper {
             pixel,
             flux: 0.8 * YARDSTICK * scale * scale * area,
             free: true,
+            with_disc: false,
         }
     }
 
@@ -244,11 +245,13 @@ mod gripper {
                 pixel: [20.0, 20.0 + k as f64],
                 flux: 50.0,
                 free: k % 2 == 0,
+                with_disc: false,
             };
             let disc = EffectorCandidate {
                 pixel: [200.0, 60.0],
                 flux: 80.0,
                 free: false,
+                with_disc: false,
             };
             let blobs = [
                 Some(blob(base[1], 1)),
