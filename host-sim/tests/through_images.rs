@@ -12,6 +12,18 @@ fn pick_through_images(seed: u64) -> PickRun {
     run_pick_in_process(&experiment, seed).unwrap()
 }
 
+/// The pick of workcell `seed` through images succeeds with a grasp.
+fn assert_grasps_through_images(seed: u64) {
+    let run = pick_through_images(seed);
+    assert_eq!(
+        run.result,
+        PickResult::Success,
+        "seed {seed}: {:?}",
+        run.phases
+    );
+    assert!(run.grasp.is_some(), "seed {seed}: no grasp");
+}
+
 #[test]
 fn a_pick_fed_from_images_grasps_with_every_label_right() {
     // Seeds 1 and 3 of `host-sim run --camera-source images` (not tuned on:
@@ -67,14 +79,7 @@ fn the_search_sweeps_on_until_the_camera_has_shown_the_part() {
     // holding over the disc for it, the arm hid the disc from the camera.
     // The search sweeps on, clear of the disc, until the part has been shown.
     for seed in [11_000_093, 11_000_145] {
-        let run = pick_through_images(seed);
-        assert_eq!(
-            run.result,
-            PickResult::Success,
-            "seed {seed}: {:?}",
-            run.phases
-        );
-        assert!(run.grasp.is_some(), "seed {seed}: no grasp");
+        assert_grasps_through_images(seed);
     }
 }
 
@@ -123,14 +128,7 @@ fn marks_seen_only_in_passing_are_looked_for_slowly_where_they_were() {
     // the arm showed them no more (`EffectorNotSeen`). Slow passes to and
     // fro over where the flange was when they were seen label them.
     for seed in [11_000_229, 11_000_688] {
-        let run = pick_through_images(seed);
-        assert_eq!(
-            run.result,
-            PickResult::Success,
-            "seed {seed}: {:?}",
-            run.phases
-        );
-        assert!(run.grasp.is_some(), "seed {seed}: no grasp");
+        assert_grasps_through_images(seed);
     }
 }
 
