@@ -136,6 +136,22 @@ const REFERENCE_LIGHT_MAX: f64 = 1.8;
 /// (a feature there sends less than half its light in the same light).
 const NEIGHBOUR_M: f64 = 0.15;
 const NEIGHBOUR_LIGHT: f64 = 1.5;
+/// With a key mark, the key is told from the reference by its neighbours:
+/// at least this many marks within [`NEIGHBOUR_M`] send about a plain
+/// feature's light against it (`(d_f / d_key)^2` within
+/// [`FEATURE_LIKE_LIGHT`], however young their tracks). The key's plain
+/// neighbours send 0.63 of its light as measured (0.71 nominal: the
+/// threshold trims a small mark's fringe more), beyond
+/// [`NEIGHBOUR_LIGHT`]; a reference beside the part has only the key in
+/// that band (the plain features send 0.37 to 0.44 of its light). Offline
+/// campaign seed 7, trial 148: the key, alone while its neighbours were
+/// young, was taken for the reference.
+const KEY_NEIGHBOURS: usize = 2;
+/// A known disc whose reference has not been seen while the disc turned
+/// this far, rad, is forgotten: the reference was wrong (its mark gone
+/// with the part) or the disc is to be found again; else a wrong first
+/// reference would keep the true one out for the rest of the run.
+const REFERENCE_UNSEEN_RAD: f64 = core::f64::consts::TAU;
 /// The part's features are alike: a feature's light lies within this
 /// factor of the others' (the gripper's smaller mark, following the part
 /// before the grasp, turns with the disc too and is about a feature's size
@@ -318,6 +334,8 @@ pub struct Identifier {
     effector: EffectorMarks,
     /// The reference mark's mean flux, the yardstick of the other marks' sizes.
     reference_flux: Option<f64>,
+    /// The encoder angle when the reference was last seen.
+    reference_seen_theta: Option<f64>,
 }
 
 impl Identifier {
@@ -341,6 +359,7 @@ impl Identifier {
                 lens.f_px,
             ),
             reference_flux: None,
+            reference_seen_theta: None,
         }
     }
 
@@ -724,23 +743,47 @@ impl Identifier {
     /// Another turning track lies within [`NEIGHBOUR_M`] of `candidate`
     /// (under the disc image `disc`) and sends about its light: the
     /// candidate is one of several like marks, a part feature.
+    /// With a key mark (and [`KEY_NEIGHBOURS`] plain ones), the candidate
+    /// also counts as a part feature when that many marks near it send a
+    /// plain feature's light against the key's.
     fn has_like_neighbour(&self, candidate: &Followed, disc: &DiscImage) -> bool {
         let reach_px = NEIGHBOUR_M * disc.scale_px_per_m;
         let p = candidate.track.latest.1;
-        self.tracks.iter().any(|other| {
+        let candidate_flux = candidate.track.mean_flux();
+        let near = |other: &Followed| {
             !core::ptr::eq(other, candidate)
                 && other.track.misses == 0
-                && Self::turning(other)
+                && !other.on_arm
                 && libm::hypot(
                     other.track.latest.1[0] - p[0],
                     other.track.latest.1[1] - p[1],
                 ) <= reach_px
-                && Self::in_band(
-                    other.track.mean_flux(),
-                    candidate.track.mean_flux(),
-                    NEIGHBOUR_LIGHT,
-                )
-        })
+        };
+        let alike = self.tracks.iter().any(|other| {
+            near(other)
+                && Self::turning(other)
+                && Self::in_band(other.track.mean_flux(), candidate_flux, NEIGHBOUR_LIGHT)
+        });
+        let d = self.settings.diameters;
+        let key_with_plain = match d.part_key_m {
+            Some(key_m) if key_m > 0.0 && self.settings.part_feature_count > KEY_NEIGHBOURS => {
+                let plain_share = (d.part_feature_m / key_m) * (d.part_feature_m / key_m);
+                self.tracks
+                    .iter()
+                    .filter(|other| {
+                        near(other)
+                            && Self::in_band(
+                                other.track.mean_flux(),
+                                candidate_flux * plain_share,
+                                FEATURE_LIKE_LIGHT,
+                            )
+                    })
+                    .count()
+                    >= KEY_NEIGHBOURS
+            }
+            _ => false,
+        };
+        alike || key_with_plain
     }
 
     /// Forgets the disc stage (a reference found wrong): the disc's image,
@@ -759,6 +802,7 @@ impl Identifier {
         self.centre_px = None;
         self.centre_flux = None;
         self.reference_flux = None;
+        self.reference_seen_theta = None;
     }
 
     fn find_reference(&mut self, theta: f64) {
@@ -775,6 +819,9 @@ impl Identifier {
                 .iter()
                 .find(|f| f.label == Some(MarkLabel::DiscCentre))
                 .map(|f| f.track.mean_flux());
+            if reference.track.misses == 0 {
+                self.reference_seen_theta = Some(theta);
+            }
             let disc = self.disc_of(&reference.track);
             let wrong = centre_flux
                 .is_some_and(|c| !self.reference_light(reference.track.mean_flux(), c))
@@ -789,6 +836,13 @@ impl Identifier {
                 self.disc = Some(disc);
             }
             return;
+        }
+        if self.disc.is_some()
+            && self
+                .reference_seen_theta
+                .is_some_and(|seen| libm::fabs(theta - seen) > REFERENCE_UNSEEN_RAD)
+        {
+            self.reset_disc();
         }
         let mut chosen: Option<usize> = None;
         let mut consistent = 0;
@@ -876,13 +930,13 @@ impl Identifier {
                 chosen = Some(i);
             }
         }
-        let _ = theta;
         if consistent == 1 {
             if let Some(followed) = chosen.and_then(|i| self.tracks.get_mut(i)) {
                 followed.label = Some(MarkLabel::Reference);
             }
             if let Some(track) = chosen.and_then(|i| self.tracks.get(i)).map(|f| f.track) {
                 self.disc = self.disc_of(&track).or(self.disc);
+                self.reference_seen_theta = Some(theta);
             }
         }
     }

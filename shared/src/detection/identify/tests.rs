@@ -710,6 +710,92 @@ mod disc {
         assert!(reference_seen, "the true reference was never labelled");
     }
 
+    /// The part's key feature (19 mm, its light 0.8 of the centre's: in
+    /// brighter light than the centre, within the reference's band) at
+    /// `KEY_M`, its two plain features (0.63 of the key's light, as
+    /// measured) 5 cm from it.
+    const KEY_M: [f64; 2] = [L_M * -0.5, L_M * 0.75];
+    const KEY_FLUX: f64 = 1600.0;
+    const PLAIN_FLUX: f64 = 1010.0;
+
+    fn with_key() -> IdentifySettings {
+        let mut settings = settings();
+        settings.diameters.part_key_m = Some(0.019);
+        settings
+    }
+
+    fn plain_m(i: usize) -> [f64; 2] {
+        let dx = if i == 0 { 0.05 } else { 0.0 };
+        [KEY_M[0] + dx, KEY_M[1] - 0.05 + dx]
+    }
+
+    #[test]
+    fn the_key_feature_with_young_plain_neighbours_is_not_taken_for_the_reference() {
+        // Offline campaign seed 7, trial 148: the reference hidden, the
+        // plain features first seen two frames before the key's path was
+        // long enough to measure the disc.
+        let mut identifier = Identifier::new(with_key());
+        let mut out = Vec::new();
+        let far = [[0.0; 3], [0.1, 0.0, 0.0]];
+        let mut reference_seen = false;
+        for k in 0..90 {
+            let theta = 0.1 * k as f64;
+            let mut blobs: heapless::Vec<Blob, 8> = heapless::Vec::new();
+            let _ = blobs.push(blob(pixel([0.0, 0.0], theta), 18, CENTRE_FLUX));
+            let _ = blobs.push(blob(pixel(KEY_M, theta), 14, KEY_FLUX));
+            if k >= 10 {
+                for i in 0..2 {
+                    let _ = blobs.push(blob(pixel(plain_m(i), theta), 9, PLAIN_FLUX));
+                }
+            }
+            if k >= 40 {
+                let _ = blobs.push(blob(pixel([L_M, 0.0], theta), 18, REFERENCE_FLUX));
+            }
+            identifier.identify(theta, &blobs, &far, &mut out);
+            assert_ne!(
+                labels_of(&out, MarkLabel::Reference),
+                Some(1),
+                "frame {k}: the key taken for the reference"
+            );
+            reference_seen |= labels_of(&out, MarkLabel::Reference) == Some(4);
+        }
+        assert!(reference_seen, "the true reference was never labelled");
+    }
+
+    #[test]
+    fn a_reference_unseen_for_a_turn_of_the_disc_is_forgotten() {
+        // The key alone (its plain features hidden) is all a reference can
+        // be taken from; then the part leaves and the true reference shows.
+        // The disc measured from the key's path must not keep the true
+        // reference out for the rest of the run.
+        let mut identifier = Identifier::new(with_key());
+        let mut out = Vec::new();
+        let far = [[0.0; 3], [0.1, 0.0, 0.0]];
+        let mut key_taken = false;
+        let mut reference_from = None;
+        for k in 0..200 {
+            let theta = 0.1 * k as f64;
+            let mut blobs: heapless::Vec<Blob, 8> = heapless::Vec::new();
+            let _ = blobs.push(blob(pixel([0.0, 0.0], theta), 18, CENTRE_FLUX));
+            if k < 40 {
+                let _ = blobs.push(blob(pixel(KEY_M, theta), 14, KEY_FLUX));
+            } else {
+                let _ = blobs.push(blob(pixel([L_M, 0.0], theta), 18, REFERENCE_FLUX));
+            }
+            identifier.identify(theta, &blobs, &far, &mut out);
+            let reference = labels_of(&out, MarkLabel::Reference);
+            key_taken |= k < 40 && reference == Some(1);
+            if k >= 40 && reference == Some(1) && reference_from.is_none() {
+                reference_from = Some(k);
+            }
+        }
+        assert!(key_taken, "the case needs the key taken first");
+        // Forgotten after a turn unseen (63 frames), found again after its
+        // path is measured (12 more).
+        let from = reference_from.expect("the true reference was never labelled");
+        assert!(from <= 40 + 63 + 20, "labelled from frame {from}");
+    }
+
     #[test]
     fn a_mark_resting_beside_the_hidden_centre_is_not_the_centre() {
         let mut identifier = Identifier::new(settings());
