@@ -4,6 +4,10 @@
 //! (a mislabel) otherwise. Part features are matched as a set first (the
 //! front end's order is its own): each feature label takes the true feature
 //! it most often lands on. A visible mark without its label is dropped.
+//! Where two marks merge into one blob (each within [`MATCH_PX`] of the
+//! point, as a glint lying over a feature), a label naming either is the
+//! right mark with a displaced point, not a mislabel: the point is where
+//! the named mark is.
 
 use std::collections::BTreeMap;
 
@@ -51,7 +55,8 @@ fn class(label: MarkLabel) -> (&'static str, usize) {
 pub enum Verdict {
     /// The nearest true mark within [`MATCH_PX`] is the one it names.
     Right,
-    /// The mark it names, but its point more than [`MATCH_PX`] off.
+    /// The mark it names, but its point more than [`MATCH_PX`] off, or
+    /// within it with another mark nearer (two marks in one blob).
     Off,
     /// Another mark, or none.
     Wrong,
@@ -154,7 +159,14 @@ impl<'a> Judge<'a> {
         let is_named = |m: &TrueMark| m.kind == kind && Some(m.index) == index;
         Some(if nearest(t, point.pixel).is_some_and(is_named) {
             Verdict::Right
-        } else if nearest_within(t, point.pixel, OFF_PX).is_some_and(is_named) {
+        } else if nearest_within(t, point.pixel, OFF_PX).is_some_and(is_named)
+            || t.marks.iter().any(|m| {
+                m.shows
+                    && is_named(m)
+                    && (m.pinhole_px[0] - point.pixel[0]).hypot(m.pinhole_px[1] - point.pixel[1])
+                        <= MATCH_PX
+            })
+        {
             Verdict::Off
         } else {
             Verdict::Wrong
@@ -212,4 +224,67 @@ pub fn score(labels: &[FrameLabels], truth: &[TrueFrame]) -> LabelScore {
         }
     }
     score
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mark(kind: &str, index: usize, at: [f64; 2], shows: bool) -> TrueMark {
+        TrueMark {
+            kind: kind.into(),
+            index,
+            image_px: at,
+            pinhole_px: at,
+            visible: false,
+            shows,
+        }
+    }
+
+    fn verdict(marks: Vec<TrueMark>, label: MarkLabel, at: [f64; 2]) -> Option<Verdict> {
+        let truth = [TrueFrame {
+            trigger_id: 7,
+            marks,
+        }];
+        let point = LabelledPoint {
+            label,
+            pixel: at,
+            blob: 0,
+        };
+        Judge::in_fixed_order(&truth).verdict(7, &point)
+    }
+
+    #[test]
+    fn a_label_on_two_merged_marks_names_one_of_them_with_its_point_displaced() {
+        let key = mark("part_feature", 0, [96.6, 104.0], true);
+        let glint = mark("distractor", 5, [96.5, 103.4], true);
+        // Offline campaign seed 7, trial 123: the key with a glint over it.
+        let merged = verdict(
+            vec![key.clone(), glint.clone()],
+            MarkLabel::PartFeature(0),
+            [96.4, 103.5],
+        );
+        assert_eq!(merged, Some(Verdict::Off));
+        // The glint alone, the key hidden: a mislabel.
+        let hidden_key = mark("part_feature", 0, [96.6, 104.0], false);
+        let alone = verdict(
+            vec![hidden_key, glint],
+            MarkLabel::PartFeature(0),
+            [96.4, 103.5],
+        );
+        assert_eq!(alone, Some(Verdict::Wrong));
+        // The key 2 px from the point with a glint nearer: a mislabel.
+        let beside = mark("part_feature", 0, [98.4, 103.5], true);
+        let glint = mark("distractor", 5, [96.5, 103.4], true);
+        let near = verdict(
+            vec![beside, glint],
+            MarkLabel::PartFeature(0),
+            [96.4, 103.5],
+        );
+        assert_eq!(near, Some(Verdict::Wrong));
+        assert_eq!(
+            verdict(vec![key], MarkLabel::PartFeature(0), [96.4, 103.5]),
+            Some(Verdict::Right)
+        );
+    }
 }
