@@ -153,3 +153,12 @@ fn two_disc_objects_are_never_taken_for_the_grippers_pair() {
     assert!(right > 100, "gripper marks right in {right} frames");
     assert!(outcome.calibrates);
 }
+
+#[test]
+fn a_calibration_move_from_the_looks_end_keeps_the_joints_within_their_speed() {
+    // Images seed 11, cell 701: the first calibration move, from where the
+    // search's look ended at the inner radius, asked joint 2 for 0.95 of its
+    // speed limit at the arcs' default pace, and the supervisor stopped the
+    // pick (JointOverspeed). The worker now proves each move's pace.
+    assert_grasps_through_images(11_000_701);
+}

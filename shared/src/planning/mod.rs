@@ -30,7 +30,7 @@ pub use intercept::{
     plan_intercept, plan_intercept_where, InterceptLimits, InterceptPlan, TaskState,
 };
 pub use path::{
-    check_joint_limits, check_joint_limits_with_margin, well_conditioned, within_reach,
-    within_stretch, TaskPath, MAX_STRETCH, MIN_ARM_MANIPULABILITY, MIN_WRIST_SINE,
+    check_joint_limits, check_joint_limits_with_margin, peak_speed_share, well_conditioned,
+    within_reach, within_stretch, TaskPath, MAX_STRETCH, MIN_ARM_MANIPULABILITY, MIN_WRIST_SINE,
 };
 pub use quintic::Quintic;

@@ -157,6 +157,40 @@ pub fn check_joint_limits_with_margin<T: RealField + Copy>(
     Ok(q)
 }
 
+/// The largest share of a joint's speed limit that following `path` from
+/// `q_start` asks for over `samples` samples (`J^-1 v` at each), with the
+/// joint angles at the end. Unlike [`check_joint_limits`] it measures
+/// rather than refuses, so that a move can be slowed until it fits.
+pub fn peak_speed_share<T: RealField + Copy>(
+    path: &impl TaskPath<T>,
+    robot: &Puma560<T>,
+    q_start: &JointVector<T>,
+    samples: usize,
+) -> Result<(T, JointVector<T>), PlanError> {
+    let limits = robot.joint_limits();
+    let ik = IkConfig::default();
+    let mut q = *q_start;
+    let mut worst = T::zero();
+    for t in sample_times(path.duration(), samples) {
+        let time_s: f64 = nalgebra::try_convert(t).unwrap_or(f64::NAN);
+        let state = path.sample(t);
+        q = solve_ik(robot, &state.pose(), &q, &ik)?;
+        let qd = robot
+            .jacobian(&q)
+            .lu()
+            .solve(&state.twist())
+            .ok_or(PlanError::Singular { time_s })?;
+        for (v, limit) in qd.iter().zip(limits.velocity_max.iter()) {
+            let share = v.abs() / *limit;
+            if !share.is_finite() {
+                return Err(PlanError::Singular { time_s });
+            }
+            worst = worst.max(share);
+        }
+    }
+    Ok((worst, q))
+}
+
 /// The first joint whose `|value|` exceeds `fraction * limit` (or is not finite).
 fn first_over<T: RealField + Copy>(
     value: &JointVector<T>,

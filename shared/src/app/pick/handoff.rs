@@ -17,6 +17,7 @@ use heapless::Vec;
 use super::estimate::CellEstimate;
 use super::jobs::{ConveyorSnapshot, MAX_CALIBRATION_POSES};
 use super::motion::Prediction;
+use super::pace::CalibrationPose;
 use crate::fusion::LatchedSample;
 use crate::observation::ObservationFrame;
 use crate::planning::{ArcPoint, InterceptPlan, PlanError, TaskState};
@@ -38,6 +39,11 @@ pub enum JobRequest {
         start_pose: ArcPoint<f32>,
         /// Joint angles now (the poses' IK seed).
         q_now: JointVector<f32>,
+        /// Where the flange rests now: the first calibration move starts here.
+        from: ArcPoint<f32>,
+        /// The route's waist-centre azimuth (the arcs' azimuths keep within
+        /// half a turn of it).
+        waist_centre_azimuth: f32,
     },
     /// Plan the intercept of the part (Eq 1 predicted forward).
     Plan {
@@ -69,7 +75,7 @@ pub struct JobTicket {
 pub enum JobOutcome {
     /// An estimate and, if preliminary, the poses to show the marks at; or why it was
     /// refused.
-    Estimate(Result<(CellEstimate, Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>), FaultCause>),
+    Estimate(Result<(CellEstimate, Vec<CalibrationPose, MAX_CALIBRATION_POSES>), FaultCause>),
     /// The intercept and the conveyor's prediction it assumed; or why none exists.
     Plan(Result<(InterceptPlan<f32>, Prediction), PlanError>),
 }

@@ -131,6 +131,13 @@ mod tests {
                 yaw_rad: 0.0,
             },
             q_now: JointVector::zeros(),
+            from: ArcPoint {
+                radius_m: 0.5,
+                azimuth_rad: 0.0,
+                z_m: 0.4,
+                yaw_rad: 0.0,
+            },
+            waist_centre_azimuth: 0.0,
         }
     }
 

@@ -39,6 +39,7 @@ pub mod jobs;
 pub mod motion;
 #[cfg(test)]
 mod on_brakes_tests;
+pub mod pace;
 pub mod pairing;
 mod period;
 mod refresh;
@@ -71,6 +72,7 @@ use self::handoff::{ControlEvent, JobOutcome, JobRequest};
 use self::job_slot::JobSlot;
 use self::jobs::{ConveyorSnapshot, MAX_CALIBRATION_POSES};
 use self::motion::Motion;
+use self::pace::CalibrationPose;
 use self::refresh::Refresh;
 use self::route::{travel_z, Route};
 use self::settings::PickSettings;
@@ -227,7 +229,7 @@ pub struct PickController {
     /// The estimate refreshed during the intercept, and the blend to it.
     refresh: Refresh,
     /// The poses the marks are shown at.
-    poses: Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>,
+    poses: Vec<CalibrationPose, MAX_CALIBRATION_POSES>,
     /// Rounds of calibration poses shown.
     calibration_rounds: u8,
     /// The final calibration was accepted (the pick may go down to the part).
@@ -393,6 +395,11 @@ impl PickController {
         let _ = self.outbox.push_back(event);
     }
 
+    /// The reference, at rest, as an arc's start point.
+    fn resting_point(&self) -> ArcPoint<f32> {
+        ArcPoint::from_position(&self.reference.position, self.reference.yaw)
+    }
+
     fn hold_here(&mut self) {
         self.motion = Motion::Hold(TaskState::at_rest(
             self.reference.position,
@@ -468,12 +475,17 @@ impl PickController {
                     time_us: self.last_time_us,
                     start_pose: self.route.start_pose(),
                     q_now: self.observer.q(),
+                    from: self.resting_point(),
+                    waist_centre_azimuth: self.route.waist_centre_azimuth(),
                 };
                 self.request(request, settings.estimate_budget_s);
                 return;
             }
             Step::CalibrateMove(i) => match self.poses.get(usize::from(i)).copied() {
-                Some(target) => {
+                Some(CalibrationPose {
+                    point: target,
+                    min_duration_s,
+                }) => {
                     // A height not yet confirmed clear by a sighting from above
                     // is shown at the lowest one that is: seen there, the marks
                     // clear the next step down. (Skipping it instead left every
@@ -485,7 +497,17 @@ impl PickController {
                         z_m: target.z_m.max(floor),
                         ..target
                     };
-                    let planned = self.arc_to(self.route.near_start_with_wrist(target));
+                    // At the pace the worker proved for the joints' speeds.
+                    let planned = pace::calibration_arc(
+                        &self.resting_point(),
+                        &target,
+                        self.route.waist_centre_azimuth(),
+                        min_duration_s,
+                    )
+                    .map(|path| Motion::Arc {
+                        path,
+                        start_s: self.now_s,
+                    });
                     // Reach is checked for a raised pose only (a pose at its own
                     // height was planned reachable with the estimate): the trig
                     // and the reach test cost the period a few hundred instructions.
@@ -785,7 +807,7 @@ impl PickController {
                     // Not sure enough of the base yet: show the marks again (the
                     // poses in reverse, so the arm does not travel back first).
                     self.calibration_rounds = self.calibration_rounds.saturating_add(1);
-                    self.poses.reverse();
+                    pace::reversed(&mut self.poses);
                     self.enter(Step::CalibrateMove(0));
                 } else {
                     self.calibration_accepted = true;
@@ -817,6 +839,8 @@ impl PickController {
                 time_us: self.last_time_us,
                 start_pose: self.route.start_pose(),
                 q_now: self.observer.q(),
+                from: self.resting_point(),
+                waist_centre_azimuth: self.route.waist_centre_azimuth(),
             };
             self.request(request, lead_s);
         }

@@ -88,6 +88,11 @@ impl Route {
         self.start_pose
     }
 
+    /// The azimuth every arc keeps within half a turn of.
+    pub(super) fn waist_centre_azimuth(&self) -> f32 {
+        self.waist_centre_azimuth
+    }
+
     /// An azimuth equivalent to `azimuth` within half a turn of the middle of
     /// joint 1's range, so arcs never swing the waist through its ends.
     pub(super) fn azimuth_near_start(&self, azimuth: f32) -> f32 {
@@ -97,17 +102,6 @@ impl Route {
     /// `target` with its azimuth on the start's side.
     pub(super) fn near_start(&self, mut target: ArcPoint<f32>) -> ArcPoint<f32> {
         target.azimuth_rad = self.azimuth_near_start(target.azimuth_rad);
-        target
-    }
-
-    /// `target`, whose wrist yaw was set from its azimuth as computed in
-    /// `(-pi, pi]` ([`yaw_at_azimuth`]), with its azimuth on the start's side
-    /// and the yaw turned by the same whole turns: otherwise a pose behind the
-    /// robot asks the wrist (joint 6) for a whole turn it does not have.
-    pub(super) fn near_start_with_wrist(&self, mut target: ArcPoint<f32>) -> ArcPoint<f32> {
-        let azimuth = self.azimuth_near_start(target.azimuth_rad);
-        target.yaw_rad += azimuth - target.azimuth_rad;
-        target.azimuth_rad = azimuth;
         target
     }
 

@@ -4,6 +4,7 @@
 //! to show the marks at) or an intercept plan. It never touches the arm; the
 //! control loop applies a result at the job's fixed due time.
 
+use super::pace::{paced, CalibrationPose};
 use heapless::Vec;
 
 use super::build::controller_model;
@@ -92,7 +93,15 @@ impl PickWorker {
                 time_us,
                 start_pose,
                 q_now,
-            } => JobOutcome::Estimate(self.estimate(preliminary, time_us, &start_pose, &q_now)),
+                from,
+                waist_centre_azimuth,
+            } => JobOutcome::Estimate(self.estimate(
+                preliminary,
+                time_us,
+                &start_pose,
+                &q_now,
+                (&from, waist_centre_azimuth),
+            )),
             JobRequest::Plan {
                 start,
                 q_start,
@@ -141,7 +150,8 @@ impl PickWorker {
         time_us: u64,
         start_pose: &ArcPoint<f32>,
         q_now: &crate::robot::JointVector<f32>,
-    ) -> Result<(CellEstimate, Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES>), FaultCause> {
+        (from, waist_centre_azimuth): (&ArcPoint<f32>, f32),
+    ) -> Result<(CellEstimate, Vec<CalibrationPose, MAX_CALIBRATION_POSES>), FaultCause> {
         let (result, sigma) = self
             .calibrator
             .estimate_with_uncertainty()
@@ -199,6 +209,7 @@ impl PickWorker {
             if poses.is_empty() {
                 return Err(FaultCause::DiscOutOfReach);
             }
+            let poses = paced(&poses, from, waist_centre_azimuth, q_now, &self.model);
             self.adopt();
             Ok((estimate, poses))
         } else if part_path_enters_reach(&estimate, q_now, &self.model) {
