@@ -52,8 +52,9 @@ pub struct BoardTiming {
 /// and 97 million since the search halts once the marks have crossed the
 /// view (the estimates come 15 s sooner, over fewer frames; the bench's
 /// 656-frame cell, `BENCH_M4_ONLY=estimate bench-m4/run.sh`, costs 138 and
-/// 147 million).
-pub const MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS: u64 = 47_016_840;
+/// 147 million); 55 million for the preliminary estimate since the worker
+/// proves each calibration move's joint speeds (`pick::pace`, 8.3 million).
+pub const MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS: u64 = 55_357_360;
 /// See [`MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS`].
 pub const MEASURED_ESTIMATE_FINAL_INSTRUCTIONS: u64 = 97_366_200;
 /// See [`MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS`].
