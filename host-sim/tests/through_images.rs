@@ -5,6 +5,7 @@
 use host_sim::pick::record::{PickResult, PickRun};
 use host_sim::pick::runner::run_pick_in_process;
 use host_sim::scenario::pick::{CameraSource, PickScenarioFile};
+use shared::protocol::FaultCause;
 
 fn pick_through_images(seed: u64) -> PickRun {
     let mut experiment = PickScenarioFile::default_experiment("turning").unwrap();
@@ -161,4 +162,21 @@ fn a_calibration_move_from_the_looks_end_keeps_the_joints_within_their_speed() {
     // speed limit at the arcs' default pace, and the supervisor stopped the
     // pick (JointOverspeed). The worker now proves each move's pace.
     assert_grasps_through_images(11_000_701);
+}
+
+#[test]
+fn a_search_that_never_saw_the_discs_reference_says_so() {
+    // Images seed 11, cells 264 and 460: the part's features crowd the
+    // reference mark at a small image scale and the disc is never
+    // identified, so no frame carries the reference (nor, labelled against
+    // the disc, the gripper's pair). The stop names the disc; a cell whose
+    // disc was seen and whose gripper was not (267: one mark hidden by the
+    // arm whenever the other shows) keeps `EffectorNotSeen`.
+    for (seed, cause) in [
+        (11_000_264, FaultCause::DiscNotSeen),
+        (11_000_267, FaultCause::EffectorNotSeen),
+    ] {
+        let run = pick_through_images(seed);
+        assert_eq!(run.result, PickResult::Fault(cause), "seed {seed}");
+    }
 }

@@ -42,9 +42,11 @@ pub use messages::*;
 /// self-calibrator (which now folds what its stores have no room for).
 /// v7: `CalibrationReport::sigma_grasp_*`, the part's uncertainty in the
 /// base frame (what decides whether the pick shows its marks once more).
+/// v8: `FaultCause::DiscNotSeen` (a search that ends without the marks and
+/// without a frame of the disc's reference mark says so).
 /// The handshake
 /// refuses any other version with `UnsupportedVersion` (detail: this one).
-pub const PROTOCOL_VERSION: u16 = 7;
+pub const PROTOCOL_VERSION: u16 = 8;
 
 #[cfg(test)]
 mod tests;

@@ -161,6 +161,12 @@ pub enum FaultCause {
     /// Homing: a joint travelled its search span without an index pulse (a
     /// dead index channel or a stalled joint). Added in v5.
     HomingIndexNotSeen,
+    /// The search ended without the gripper's marks seen often enough, and
+    /// no camera frame ever showed the disc's reference mark: the vision
+    /// stage never identified the disc (the cell cannot be calibrated
+    /// against it), rather than the camera not seeing the gripper
+    /// (`EffectorNotSeen`). Added in v8.
+    DiscNotSeen,
 }
 
 /// A snapshot of the controller's estimates, sent every `telemetry_period_ticks`.

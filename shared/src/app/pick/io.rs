@@ -56,6 +56,10 @@ impl PickController {
         match news {
             VisionNews::Paired { sighting, view } => {
                 self.counters.frames_paired = self.counters.frames_paired.saturating_add(1);
+                if view.is_some_and(|view| view.reference_px.is_some()) {
+                    self.counters.reference_frames =
+                        self.counters.reference_frames.saturating_add(1);
+                }
                 self.last_paired_s = self.now_s;
                 if let (Some(view), true) = (view, self.step.watches_view()) {
                     if let Some(cause) = self.view.check(view) {

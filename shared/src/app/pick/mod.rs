@@ -138,6 +138,8 @@ pub struct PickCounters {
     pub saturated_ticks: u32,
     /// Frames in which the camera saw the gripper's marks.
     pub effector_sightings: u32,
+    /// Paired frames that showed the disc's reference mark.
+    pub reference_frames: u32,
     /// Gaps between control periods longer than the stall limit.
     pub stalls: u32,
     /// Times the joint brake took over from Eq 23.
@@ -393,6 +395,19 @@ impl PickController {
             let _ = self.outbox.pop_front();
         }
         let _ = self.outbox.push_back(event);
+    }
+
+    /// Why a search that ended without enough sightings failed: the vision
+    /// stage labels the gripper's marks against the disc it has identified
+    /// (images seed 11, cells 264 and 460: the part's features crowded the
+    /// reference mark and the disc was never identified); with no frame of
+    /// the reference mark at all, that is the cause to report.
+    fn search_failure(&self) -> FaultCause {
+        if self.counters.reference_frames == 0 {
+            FaultCause::DiscNotSeen
+        } else {
+            FaultCause::EffectorNotSeen
+        }
     }
 
     /// The reference, at rest, as an arc's start point.
@@ -690,7 +705,7 @@ impl PickController {
                 } else {
                     // Every radius swept over joint 1's whole range, and the
                     // camera never saw the gripper: it cannot, from where it stands.
-                    self.raise(FaultCause::EffectorNotSeen);
+                    self.raise(self.search_failure());
                 }
             }
             Step::SearchReturn if finished => {
@@ -709,7 +724,7 @@ impl PickController {
                 } else {
                     // Passed slowly over where the marks were seen, and
                     // still too few.
-                    self.raise(FaultCause::EffectorNotSeen);
+                    self.raise(self.search_failure());
                 }
             }
             Step::EstimatePreliminary | Step::EstimateFinal => self.on_estimate(in_step),
