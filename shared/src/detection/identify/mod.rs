@@ -381,7 +381,7 @@ impl Identifier {
 
     /// Why the gripper's marks went unlabelled once the projection was
     /// known, per mark (see [`EffectorMarks::refusals`]).
-    pub fn effector_refusals(&self) -> [[u32; 7]; 2] {
+    pub fn effector_refusals(&self) -> [[u32; 8]; 2] {
         self.effector.refusals
     }
 
