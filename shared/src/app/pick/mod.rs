@@ -512,7 +512,9 @@ impl PickController {
                         z_m: target.z_m.max(floor),
                         ..target
                     };
-                    // At the pace the worker proved for the joints' speeds.
+                    // At the pace the worker proved for the joints' speeds (a
+                    // raised pose keeps its own height's pace; the supervisor
+                    // checks the live reference's joint speeds every period).
                     let planned = pace::calibration_arc(
                         &self.resting_point(),
                         &target,

@@ -4,7 +4,6 @@
 //! to show the marks at) or an intercept plan. It never touches the arm; the
 //! control loop applies a result at the job's fixed due time.
 
-use super::pace::{paced, CalibrationPose};
 use heapless::Vec;
 
 use super::build::controller_model;
@@ -16,6 +15,7 @@ use super::jobs::{
     MAX_CALIBRATION_POSES,
 };
 use super::motion::Prediction;
+use super::pace::{paced, CalibrationPose};
 use super::settings::{at_most, PickSettings};
 use super::PickCalibrator;
 use crate::calibration::CalibrationError;
