@@ -254,37 +254,22 @@ mod tests {
         Judge::in_fixed_order(&truth).verdict(7, &point)
     }
 
+    /// Feature 0's label at (96.4, 103.5) among `marks`.
+    fn feature_0(marks: Vec<TrueMark>) -> Option<Verdict> {
+        verdict(marks, MarkLabel::PartFeature(0), [96.4, 103.5])
+    }
+
     #[test]
     fn a_label_on_two_merged_marks_names_one_of_them_with_its_point_displaced() {
-        let key = mark("part_feature", 0, [96.6, 104.0], true);
-        let glint = mark("distractor", 5, [96.5, 103.4], true);
+        let key = |shows| mark("part_feature", 0, [96.6, 104.0], shows);
+        let glint = || mark("distractor", 5, [96.5, 103.4], true);
         // Offline campaign seed 7, trial 123: the key with a glint over it.
-        let merged = verdict(
-            vec![key.clone(), glint.clone()],
-            MarkLabel::PartFeature(0),
-            [96.4, 103.5],
-        );
-        assert_eq!(merged, Some(Verdict::Off));
+        assert_eq!(feature_0(vec![key(true), glint()]), Some(Verdict::Off));
         // The glint alone, the key hidden: a mislabel.
-        let hidden_key = mark("part_feature", 0, [96.6, 104.0], false);
-        let alone = verdict(
-            vec![hidden_key, glint],
-            MarkLabel::PartFeature(0),
-            [96.4, 103.5],
-        );
-        assert_eq!(alone, Some(Verdict::Wrong));
+        assert_eq!(feature_0(vec![key(false), glint()]), Some(Verdict::Wrong));
         // The key 2 px from the point with a glint nearer: a mislabel.
         let beside = mark("part_feature", 0, [98.4, 103.5], true);
-        let glint = mark("distractor", 5, [96.5, 103.4], true);
-        let near = verdict(
-            vec![beside, glint],
-            MarkLabel::PartFeature(0),
-            [96.4, 103.5],
-        );
-        assert_eq!(near, Some(Verdict::Wrong));
-        assert_eq!(
-            verdict(vec![key], MarkLabel::PartFeature(0), [96.4, 103.5]),
-            Some(Verdict::Right)
-        );
+        assert_eq!(feature_0(vec![beside, glint()]), Some(Verdict::Wrong));
+        assert_eq!(feature_0(vec![key(true)]), Some(Verdict::Right));
     }
 }

@@ -12,7 +12,7 @@
 use heapless::Vec;
 
 use super::jobs::MAX_CALIBRATION_POSES;
-use crate::angle::wrap_pi;
+use super::route::azimuth_within_half_a_turn;
 use crate::planning::{peak_speed_share, ArcLimits, ArcMove, ArcPoint, PlanError, TaskPath};
 use crate::robot::{JointVector, Puma560};
 
@@ -49,7 +49,7 @@ pub fn calibration_arc(
     waist_centre_azimuth: f32,
     min_duration_s: f32,
 ) -> Result<ArcMove<f32>, PlanError> {
-    let near = |azimuth: f32| waist_centre_azimuth + wrap_pi(azimuth - waist_centre_azimuth);
+    let near = |azimuth: f32| azimuth_within_half_a_turn(waist_centre_azimuth, azimuth);
     let mut start = *from;
     start.azimuth_rad = near(start.azimuth_rad);
     let mut end = *target;

@@ -96,7 +96,7 @@ impl Route {
     /// An azimuth equivalent to `azimuth` within half a turn of the middle of
     /// joint 1's range, so arcs never swing the waist through its ends.
     pub(super) fn azimuth_near_start(&self, azimuth: f32) -> f32 {
-        self.waist_centre_azimuth + wrap_pi(azimuth - self.waist_centre_azimuth)
+        azimuth_within_half_a_turn(self.waist_centre_azimuth, azimuth)
     }
 
     /// `target` with its azimuth on the start's side.
@@ -327,3 +327,8 @@ const MIN_CARRY_RADIUS_M: f32 = 0.01;
 /// A look's half width turns to an angle at no less than this radius, m
 /// (the sweeps lie farther out: the shoulder's singularity).
 const LOOK_MIN_RADIUS_M: f32 = 0.1;
+
+/// The azimuth equivalent to `azimuth` within half a turn of `centre`.
+pub(super) fn azimuth_within_half_a_turn(centre: f32, azimuth: f32) -> f32 {
+    centre + wrap_pi(azimuth - centre)
+}

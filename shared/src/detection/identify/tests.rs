@@ -726,33 +726,54 @@ mod disc {
         out.iter().find(|p| p.label == label).map(|p| p.blob)
     }
 
-    #[test]
-    fn a_part_feature_on_the_references_circle_is_not_taken_for_it() {
-        let mut identifier = Identifier::new(settings());
+    /// Which blob took the reference's label, frame by frame, over `frames`
+    /// frames 0.1 rad apart, the disc centre's mark always blob 0 and
+    /// `scene(k, theta)` the other blobs of frame `k`.
+    fn reference_blobs(
+        settings: IdentifySettings,
+        frames: usize,
+        scene: impl Fn(usize, f64) -> heapless::Vec<Blob, 7>,
+    ) -> heapless::Vec<Option<usize>, 256> {
+        let mut identifier = Identifier::new(settings);
         let mut out = Vec::new();
         let far = [[0.0; 3], [0.1, 0.0, 0.0]];
-        let mut reference_seen = false;
-        for k in 0..80 {
+        let mut labels = heapless::Vec::new();
+        for k in 0..frames {
             let theta = 0.1 * k as f64;
-            // The reference is hidden for the first 50 frames: the feature
-            // is the one turning mark of about its size.
             let mut blobs: heapless::Vec<Blob, 8> = heapless::Vec::new();
             let _ = blobs.push(blob(pixel([0.0, 0.0], theta), 18, CENTRE_FLUX));
+            for b in scene(k, theta) {
+                let _ = blobs.push(b);
+            }
+            identifier.identify(theta, &blobs, &far, &mut out);
+            let _ = labels.push(labels_of(&out, MarkLabel::Reference));
+        }
+        labels
+    }
+
+    #[test]
+    fn a_part_feature_on_the_references_circle_is_not_taken_for_it() {
+        // The reference is hidden for the first 50 frames: the feature is
+        // the one turning mark of about its size.
+        let labels = reference_blobs(settings(), 80, |k, theta| {
+            let mut blobs = heapless::Vec::new();
             let _ = blobs.push(blob(pixel(FEATURE_M, theta), 11, FEATURE_FLUX));
             if k >= 50 {
                 let _ = blobs.push(blob(pixel([L_M, 0.0], theta), 18, REFERENCE_FLUX));
             }
-            identifier.identify(theta, &blobs, &far, &mut out);
+            blobs
+        });
+        for (k, label) in labels.iter().enumerate() {
             assert_ne!(
-                labels_of(&out, MarkLabel::Reference),
+                *label,
                 Some(1),
                 "frame {k}: the feature taken for the reference"
             );
-            if labels_of(&out, MarkLabel::Reference) == Some(2) {
-                reference_seen = true;
-            }
         }
-        assert!(reference_seen, "the true reference was never labelled");
+        assert!(
+            labels.contains(&Some(2)),
+            "the true reference was never labelled"
+        );
     }
 
     /// The part's key feature (19 mm, its light 0.8 of the centre's: in
@@ -779,14 +800,8 @@ mod disc {
         // Offline campaign seed 7, trial 148: the reference hidden, the
         // plain features first seen two frames before the key's path was
         // long enough to measure the disc.
-        let mut identifier = Identifier::new(with_key());
-        let mut out = Vec::new();
-        let far = [[0.0; 3], [0.1, 0.0, 0.0]];
-        let mut reference_seen = false;
-        for k in 0..90 {
-            let theta = 0.1 * k as f64;
-            let mut blobs: heapless::Vec<Blob, 8> = heapless::Vec::new();
-            let _ = blobs.push(blob(pixel([0.0, 0.0], theta), 18, CENTRE_FLUX));
+        let labels = reference_blobs(with_key(), 90, |k, theta| {
+            let mut blobs = heapless::Vec::new();
             let _ = blobs.push(blob(pixel(KEY_M, theta), 14, KEY_FLUX));
             if k >= 10 {
                 for i in 0..2 {
@@ -796,15 +811,19 @@ mod disc {
             if k >= 40 {
                 let _ = blobs.push(blob(pixel([L_M, 0.0], theta), 18, REFERENCE_FLUX));
             }
-            identifier.identify(theta, &blobs, &far, &mut out);
+            blobs
+        });
+        for (k, label) in labels.iter().enumerate() {
             assert_ne!(
-                labels_of(&out, MarkLabel::Reference),
+                *label,
                 Some(1),
                 "frame {k}: the key taken for the reference"
             );
-            reference_seen |= labels_of(&out, MarkLabel::Reference) == Some(4);
         }
-        assert!(reference_seen, "the true reference was never labelled");
+        assert!(
+            labels.contains(&Some(4)),
+            "the true reference was never labelled"
+        );
     }
 
     #[test]
@@ -813,31 +832,27 @@ mod disc {
         // be taken from; then the part leaves and the true reference shows.
         // The disc measured from the key's path must not keep the true
         // reference out for the rest of the run.
-        let mut identifier = Identifier::new(with_key());
-        let mut out = Vec::new();
-        let far = [[0.0; 3], [0.1, 0.0, 0.0]];
-        let mut key_taken = false;
-        let mut reference_from = None;
-        for k in 0..200 {
-            let theta = 0.1 * k as f64;
-            let mut blobs: heapless::Vec<Blob, 8> = heapless::Vec::new();
-            let _ = blobs.push(blob(pixel([0.0, 0.0], theta), 18, CENTRE_FLUX));
+        let labels = reference_blobs(with_key(), 200, |k, theta| {
+            let mut blobs = heapless::Vec::new();
             if k < 40 {
                 let _ = blobs.push(blob(pixel(KEY_M, theta), 14, KEY_FLUX));
             } else {
                 let _ = blobs.push(blob(pixel([L_M, 0.0], theta), 18, REFERENCE_FLUX));
             }
-            identifier.identify(theta, &blobs, &far, &mut out);
-            let reference = labels_of(&out, MarkLabel::Reference);
-            key_taken |= k < 40 && reference == Some(1);
-            if k >= 40 && reference == Some(1) && reference_from.is_none() {
-                reference_from = Some(k);
-            }
-        }
-        assert!(key_taken, "the case needs the key taken first");
+            blobs
+        });
+        let (before, after) = labels.split_at(40);
+        assert!(
+            before.contains(&Some(1)),
+            "the case needs the key taken first"
+        );
         // Forgotten after a turn unseen (63 frames), found again after its
         // path is measured (12 more).
-        let from = reference_from.expect("the true reference was never labelled");
+        let from = after
+            .iter()
+            .position(|label| *label == Some(1))
+            .map(|k| k + 40)
+            .expect("the true reference was never labelled");
         assert!(from <= 40 + 63 + 20, "labelled from frame {from}");
     }
 
