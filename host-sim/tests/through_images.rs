@@ -180,3 +180,24 @@ fn a_search_that_never_saw_the_discs_reference_says_so() {
         assert_eq!(run.result, PickResult::Fault(cause), "seed {seed}");
     }
 }
+
+#[test]
+fn a_gripper_mark_the_forearm_cuts_is_not_taken_for_a_sighting() {
+    // Cells 35 and 205 of `host-sim montecarlo --camera-source images
+    // --seed 11`: the forearm hid the rim of gripper mark 0 in a third of
+    // its sightings, for frames on end while the arm rested, and those
+    // blobs read 0.3 to 0.8 px off its centre. The base came 3.5 to 6 mm
+    // off and the part at the grasp 4.1 and 6.3 mm; with the cut blobs
+    // left unlabelled, 1.6 and 0.9 mm.
+    for seed in [11_000_035, 11_000_205] {
+        let run = pick_through_images(seed);
+        assert_eq!(run.result, PickResult::Success, "seed {seed}");
+        let grasp = run.grasp.expect("a grasp");
+        let [x, y, z] = grasp.estimate_error_m.expect("an estimate at the grasp");
+        let error_m = (x * x + y * y + z * z).sqrt();
+        assert!(
+            error_m < 3e-3,
+            "seed {seed}: part estimate off by {error_m} m"
+        );
+    }
+}

@@ -251,7 +251,7 @@ impl FrontEnd {
     }
 
     /// Why the gripper's marks went unlabelled once the projection was known.
-    pub fn effector_refusals(&self) -> [[u32; 8]; 2] {
+    pub fn effector_refusals(&self) -> [[u32; 9]; 2] {
         self.identifier.effector_refusals()
     }
 

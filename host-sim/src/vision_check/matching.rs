@@ -119,6 +119,7 @@ mod tests {
             orientation_rad: 0.0,
             peak_contrast: 100,
             mean_contrast: 80.0,
+            lopsidedness: 0.0,
         }
     }
 

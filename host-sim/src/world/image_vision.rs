@@ -134,10 +134,13 @@ impl ImageVision {
                 };
                 for (what, variable) in debug.into_iter().chain([("label", "LABEL_DEBUG")]) {
                     if std::env::var_os(variable).is_some() {
+                        let blob = labels.blobs.get(point.blob);
                         eprintln!(
-                            "{what} {:?} frame {trigger_id} at {:.4?}; nearest true mark {}",
+                            "{what} {:?} frame {trigger_id} at {:.4?} (blob of {} px, lopsided {:.3}); nearest true mark {}",
                             point.label,
                             point.pixel,
+                            blob.map_or(0, |b| b.area_px),
+                            blob.map_or(0.0, |b| b.lopsidedness),
                             nearest_mark(&frame.truth, point.pixel)
                         );
                     }

@@ -58,6 +58,10 @@ pub struct Blob {
     pub peak_contrast: u8,
     /// Mean contrast above the background, grey levels.
     pub mean_contrast: f32,
+    /// Skewness of the mark's coverage, whitened by its moment ellipse
+    /// ([`crate::detection::coverage`]): near 0 for a whole mark, larger
+    /// when something in front cuts a piece off it.
+    pub lopsidedness: f32,
 }
 
 /// Why a component is not a mark.
@@ -135,6 +139,7 @@ impl Blob {
             orientation_rad: (0.5 * libm::atan2(2.0 * cxy, cxx - cyy)) as f32,
             peak_contrast: sums.peak,
             mean_contrast: (sums.sw as f64 / n) as f32,
+            lopsidedness: 0.0,
         })
     }
 }

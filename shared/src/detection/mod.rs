@@ -4,7 +4,7 @@
 //!
 //! The paper's method (Sections 2 and 3) stands on image points: the disc's
 //! reference mark, the part's feature points and the end effector's marks.
-//! Bright round marks on a darker scene are found in three steps:
+//! Bright round marks on a darker scene are found in four steps:
 //! - [`background`]: the local background level and noise, tile by tile,
 //!   so that a threshold of `level + max(min_contrast, noise_factor * noise)`
 //!   copes with light that varies across the image and over time;
@@ -12,7 +12,10 @@
 //!   with exact integer sums, in memory bounded by the components open across
 //!   one row;
 //! - [`blob`]: the contrast-weighted centroid, the moment ellipse, and the
-//!   refusal of what does not look like a mark.
+//!   refusal of what does not look like a mark;
+//! - [`coverage`]: the centre again from every pixel around the mark,
+//!   weighted by how much of it the mark covers, and how lopsided that
+//!   coverage is (a mark that an edge in front cuts).
 //!
 //! Which candidate is which mark is decided elsewhere, from what the
 //! controller knows; this module only says where round bright things are.
@@ -24,12 +27,15 @@
 pub mod background;
 pub mod blob;
 pub mod components;
+pub mod coverage;
 pub mod identify;
 pub mod image;
 
 use core::fmt;
 
 use heapless::Vec;
+
+use coverage::Coverage;
 
 pub use background::Background;
 pub use blob::{Blob, MarkShape, Refusal};
@@ -175,9 +181,11 @@ impl Detector {
             report.components += 1;
             match Blob::from_sums(sums, width, height, &shape) {
                 Ok(mut blob) => {
-                    if let Some((x, y)) = window_centre(image, &background, sums, floor) {
+                    if let Some(coverage) = window_coverage(image, &background, sums, floor) {
+                        let [x, y] = coverage.centre();
                         blob.x_px = x;
                         blob.y_px = y;
+                        blob.lopsidedness = coverage.lopsidedness();
                     }
                     if out.push(blob).is_ok() {
                         report.accepted += 1;
@@ -227,8 +235,9 @@ impl Detector {
     }
 }
 
-/// The centre of a mark from every pixel of its bounding box grown by one,
-/// each weighted by the share of it the mark covers. The component holds
+/// The coverage of a mark ([`Coverage`]: its centre and how lopsided it
+/// is) from every pixel of its bounding box grown by one, each weighted by
+/// the share of it the mark covers. The component holds
 /// only the pixels above the threshold; the edge pixels that the mark covers
 /// by less than the threshold's share are missing from it, on whichever side
 /// the mark's sub-pixel position puts more of them, which biases its
@@ -245,12 +254,12 @@ impl Detector {
 /// vision-check`: the reference 0.022 px towards the disc centre, the
 /// gripper's marks 0.074 px apart, each). Contrast within `floor_grey` of
 /// the background (texture, noise) counts nothing.
-fn window_centre(
+fn window_coverage(
     image: &GrayImage<'_>,
     background: &Background,
     sums: &ComponentSums,
     floor_grey: f32,
-) -> Option<(f32, f32)> {
+) -> Option<Coverage> {
     let (width, height) = (image.width(), image.height());
     let window = WindowSides::measure(
         image,
@@ -271,7 +280,8 @@ fn window_centre(
             brightest = brightest.max(pixel(x, y));
         }
     }
-    let (mut sw, mut swx, mut swy) = (0.0f32, 0.0f32, 0.0f32);
+    // Moments about the component's centre keep the f32 sums exact enough.
+    let mut coverage = Coverage::about([cx, cy]);
     for y in y0..=y1 {
         for x in x0..=x1 {
             let background = window.background_towards(image, cx, cy, x as f32, y as f32);
@@ -279,14 +289,11 @@ fn window_centre(
             if above <= 0.0 {
                 continue;
             }
-            let weight = above / (brightest - background - floor_grey).max(1.0);
-            // Coordinates relative to the window keep the f32 sums exact enough.
-            sw += weight;
-            swx += weight * (x - x0) as f32;
-            swy += weight * (y - y0) as f32;
+            let share = above / (brightest - background - floor_grey).max(1.0);
+            coverage.add(x as f32, y as f32, share);
         }
     }
-    (sw > 0.0).then(|| (x0 as f32 + swx / sw, y0 as f32 + swy / sw))
+    coverage.is_some().then_some(coverage)
 }
 
 /// Most pixels of a window's side that its background is read from (a

@@ -24,6 +24,7 @@ fn blob(x: f32, y: f32) -> Blob {
         orientation_rad: 0.0,
         peak_contrast: 120,
         mean_contrast: 100.0,
+        lopsidedness: 0.0,
     }
 }
 

@@ -381,7 +381,7 @@ impl Identifier {
 
     /// Why the gripper's marks went unlabelled once the projection was
     /// known, per mark (see [`EffectorMarks::refusals`]).
-    pub fn effector_refusals(&self) -> [[u32; 8]; 2] {
+    pub fn effector_refusals(&self) -> [[u32; 9]; 2] {
         self.effector.refusals
     }
 
@@ -424,7 +424,9 @@ impl Identifier {
         }
         // 1. Pinhole pixels.
         let mut points: Vec<Option<(PixelPoint, f64, f64)>, MAX_BLOBS> = Vec::new();
+        let mut whole: Vec<bool, MAX_BLOBS> = Vec::new();
         for blob in blobs.iter().take(MAX_BLOBS) {
+            let _ = whole.push(effector::whole_mark(blob.area_px, blob.lopsidedness));
             let pixel = self
                 .settings
                 .lens
@@ -440,8 +442,14 @@ impl Identifier {
         self.find_centre();
         self.find_features(theta);
         // 6. Effector marks.
-        let effector =
-            self.find_effector(theta, &points, &ambiguous, &near_disc_mark, effector_base_m);
+        let effector = self.find_effector(
+            theta,
+            &points,
+            &whole,
+            &ambiguous,
+            &near_disc_mark,
+            effector_base_m,
+        );
 
         // Where the gripper's marks project now: a disc label there may be a
         // gripper mark standing in a disc mark's place, and is not given.
@@ -1282,6 +1290,7 @@ impl Identifier {
         &mut self,
         theta: f64,
         points: &[Option<(PixelPoint, f64, f64)>],
+        whole: &[bool],
         ambiguous: &[bool],
         near_disc_mark: &[bool],
         effector_base_m: &[[f64; 3]; 2],
@@ -1315,6 +1324,7 @@ impl Identifier {
                     pixel,
                     flux,
                     with_disc,
+                    whole: whole.get(i).copied().unwrap_or(false),
                     free: !on_disc
                         && !disc_marks
                             .iter()

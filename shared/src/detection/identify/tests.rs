@@ -179,7 +179,9 @@ fn nothing_is_labelled_from_nothing() {
 /// image y along base -Y (a camera looking down sees the base plane
 /// mirrored), f = 290 px.
 mod gripper {
-    use super::super::effector::{EffectorCandidate, EffectorMarks};
+    use super::super::effector::{
+        whole_mark, EffectorCandidate, EffectorMarks, JUDGED_AREA_PX, MAX_LOPSIDEDNESS,
+    };
     use super::super::MarkLabel;
 
     pub(super) const F_PX: f64 = 290.0;
@@ -222,6 +224,7 @@ mod gripper {
             flux: 0.8 * YARDSTICK * scale * scale * area,
             free: true,
             with_disc: false,
+            whole: true,
         }
     }
 
@@ -246,12 +249,14 @@ mod gripper {
                 flux: 50.0,
                 free: k % 2 == 0,
                 with_disc: false,
+                whole: true,
             };
             let disc = EffectorCandidate {
                 pixel: [200.0, 60.0],
                 flux: 80.0,
                 free: false,
                 with_disc: false,
+                whole: true,
             };
             let blobs = [
                 Some(blob(base[1], 1)),
@@ -319,6 +324,40 @@ mod gripper {
         // Whole marks: both labelled in every frame; mark 0 read off: never.
         assert_eq!(labels[0], [29, 29]);
         assert_eq!(labels[1], [0, 10]);
+    }
+
+    /// A mark whose blob is lopsided (the forearm cuts its rim) is never
+    /// labelled, in the pair stage or the projection's, nor learnt from;
+    /// its whole partner still is, and the pair is still told apart.
+    #[test]
+    fn a_mark_cut_by_the_arm_is_not_labelled_but_its_partner_is() {
+        let mut stage = stage();
+        let mut labels = [[0; 2]; 2];
+        for k in 0..120 {
+            let base = marks(k);
+            let cut = k % 3 == 0;
+            let mut mark0 = blob(base[0], 0);
+            mark0.whole = !cut;
+            let found = stage.identify(
+                &[Some(mark0), Some(blob(base[1], 1))],
+                &base,
+                Some(YARDSTICK),
+            );
+            for (mark, point) in found.iter().enumerate() {
+                if point.is_some() {
+                    labels[usize::from(cut)][mark] += 1;
+                }
+            }
+        }
+        assert_eq!(labels[1][0], 0, "a cut mark labelled");
+        assert!(labels[1][1] >= 15, "{labels:?}");
+        assert!(labels[0][0] >= 40 && labels[0][1] >= 40, "{labels:?}");
+        // The projection stage counts the cut marks it refused.
+        let refused = stage.refusals.first().and_then(|r| r.get(8)).copied();
+        assert!(refused.is_some_and(|n| n > 0), "{:?}", stage.refusals);
+        // A small blob's skewness is noise: not judged.
+        assert!(whole_mark(JUDGED_AREA_PX - 1, 1.0));
+        assert!(!whole_mark(JUDGED_AREA_PX, MAX_LOPSIDEDNESS + 0.01));
     }
 
     /// The pairs the signature was last held to read off (here: the camera
@@ -713,6 +752,7 @@ mod disc {
             orientation_rad: 0.0,
             peak_contrast: 120,
             mean_contrast: (flux / f64::from(area)) as f32,
+            lopsidedness: 0.0,
         }
     }
 
