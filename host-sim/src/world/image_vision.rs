@@ -177,7 +177,7 @@ fn nearest_mark(truth: &TrueFrame, pixel: [f64; 2]) -> String {
             || "none".to_string(),
             |(d, mark)| {
                 format!(
-                    "{} {} {d:.1} px away (visible {}, shows {}) true {:.4?}",
+                    "{} {} {d:.2} px away (visible {}, shows {}) true {:.4?}",
                     mark.kind, mark.index, mark.visible, mark.shows, mark.pinhole_px
                 )
             },

@@ -195,10 +195,10 @@ pub struct EffectorCandidate {
     pub whole: bool,
 }
 
-/// A mark's blob of at least this many pixels is judged by its
-/// lopsidedness; a smaller one's skewness is mostly noise (images seed 11,
-/// cells 35, 205, 370 and 867: whole marks of 10 to 19 px reach 0.36 at the
-/// 99th percentile, of 20 to 39 px 0.10 to 0.14).
+/// A mark's blob of at least this many pixels is judged against
+/// [`MAX_LOPSIDEDNESS`]; a smaller one's skewness is noisier (images seed
+/// 11, cells 35, 205, 370 and 867: whole marks of 10 to 19 px reach 0.36
+/// at the 99th percentile, of 20 to 39 px 0.10 to 0.14).
 pub const JUDGED_AREA_PX: u32 = 20;
 /// A judged blob more lopsided than this is a mark that something in front
 /// cuts. In those cells the forearm hid the rim of gripper mark 0 in a
@@ -207,11 +207,26 @@ pub const JUDGED_AREA_PX: u32 = 20;
 /// 6 mm off at 9 to 16 times its sigma. Mark 0's blobs above 0.15 read
 /// 0.39 px RMS off its centre, the rest 0.064 px.
 pub const MAX_LOPSIDEDNESS: f32 = 0.15;
+/// Blobs from this many pixels up to [`JUDGED_AREA_PX`] are judged
+/// against [`SMALL_MAX_LOPSIDEDNESS`]; smaller ones are not judged.
+pub const SMALL_JUDGED_AREA_PX: u32 = 15;
+/// The looser limit for blobs of 15 to 19 px: a cut mark 0 shrinks to
+/// that size (images seed 11, cell 563: 16 to 19 px at 0.2 to 0.42, read
+/// 0.2 to 0.34 px off), while whole gripper marks of that size stay below
+/// 0.2 in nine of ten (mark 1 there: 0.06 px RMS off whatever its
+/// lopsidedness).
+pub const SMALL_MAX_LOPSIDEDNESS: f32 = 0.2;
 
 /// Whether a blob of `area_px` pixels and `lopsidedness` (the detector's
 /// whitened skewness) may be taken for a whole mark.
 pub fn whole_mark(area_px: u32, lopsidedness: f32) -> bool {
-    area_px < JUDGED_AREA_PX || lopsidedness <= MAX_LOPSIDEDNESS
+    if area_px >= JUDGED_AREA_PX {
+        lopsidedness <= MAX_LOPSIDEDNESS
+    } else if area_px >= SMALL_JUDGED_AREA_PX {
+        lopsidedness <= SMALL_MAX_LOPSIDEDNESS
+    } else {
+        true
+    }
 }
 
 /// The effector stage's state over a run.

@@ -181,6 +181,7 @@ fn nothing_is_labelled_from_nothing() {
 mod gripper {
     use super::super::effector::{
         whole_mark, EffectorCandidate, EffectorMarks, JUDGED_AREA_PX, MAX_LOPSIDEDNESS,
+        SMALL_JUDGED_AREA_PX, SMALL_MAX_LOPSIDEDNESS,
     };
     use super::super::MarkLabel;
 
@@ -355,8 +356,14 @@ mod gripper {
         // The projection stage counts the cut marks it refused.
         let refused = stage.refusals.first().and_then(|r| r.get(8)).copied();
         assert!(refused.is_some_and(|n| n > 0), "{:?}", stage.refusals);
-        // A small blob's skewness is noise: not judged.
-        assert!(whole_mark(JUDGED_AREA_PX - 1, 1.0));
+        // A small blob's skewness is noise: not judged; a middling one
+        // against a looser limit.
+        assert!(whole_mark(SMALL_JUDGED_AREA_PX - 1, 1.0));
+        assert!(whole_mark(JUDGED_AREA_PX - 1, MAX_LOPSIDEDNESS + 0.01));
+        assert!(!whole_mark(
+            JUDGED_AREA_PX - 1,
+            SMALL_MAX_LOPSIDEDNESS + 0.01
+        ));
         assert!(!whole_mark(JUDGED_AREA_PX, MAX_LOPSIDEDNESS + 0.01));
     }
 
