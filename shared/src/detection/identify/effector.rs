@@ -609,10 +609,10 @@ impl EffectorMarks {
                 self.unconfirmed.clear();
             }
         }
-        // The light against the image's own separation, as the projection's
-        // stage measures it.
-        // A mark that something in front cuts is read off its centre: the
-        // pair still holds, but that mark is neither learnt nor labelled.
+        // Each mark's light against the image's own separation, as the
+        // projection's stage measures it. A mark that something in front
+        // cuts is read off its centre: the pair still holds, but that mark
+        // is neither learnt nor labelled.
         let separation_sq = raw[0] * raw[0] + raw[1] * raw[1];
         let mut found = [None, None];
         for (k, (index, mark)) in [(i0, m0), (i1, m1)].into_iter().enumerate() {
