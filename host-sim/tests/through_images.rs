@@ -13,6 +13,13 @@ fn pick_through_images(seed: u64) -> PickRun {
     run_pick_in_process(&experiment, seed).unwrap()
 }
 
+/// How far the part's estimate was from the truth at the grasp, m.
+fn grasp_estimate_error_m(run: &PickRun) -> f64 {
+    let grasp = run.grasp.as_ref().expect("a grasp");
+    let [x, y, z] = grasp.estimate_error_m.expect("an estimate at the grasp");
+    (x * x + y * y + z * z).sqrt()
+}
+
 /// The pick of workcell `seed` through images succeeds with a grasp.
 fn assert_grasps_through_images(seed: u64) {
     let run = pick_through_images(seed);
@@ -39,13 +46,12 @@ fn a_pick_fed_from_images_grasps_with_every_label_right() {
         );
         assert_eq!(vision.wrong_labels, 0, "seed {seed}: {vision:?}");
         assert_eq!(run.result, PickResult::Success, "seed {seed}");
-        let grasp = run.grasp.expect("a grasp");
-        let [x, y, z] = grasp.estimate_error_m.expect("an estimate at the grasp");
-        let error_m = (x * x + y * y + z * z).sqrt();
+        let error_m = grasp_estimate_error_m(&run);
         assert!(
             error_m < 6e-3,
             "seed {seed}: part estimate off by {error_m} m"
         );
+        let grasp = run.grasp.expect("a grasp");
         let yaw = grasp.estimate_yaw_error_rad.expect("a yaw at the grasp");
         assert!(
             yaw < 0.5f64.to_radians(),
@@ -98,9 +104,8 @@ fn a_reference_mark_that_lost_its_label_is_never_taken_for_a_feature() {
     let vision = run.vision.expect("the run went through images");
     assert_eq!(vision.wrong_labels, 0, "{vision:?}");
     assert_eq!(run.result, PickResult::Success);
-    let grasp = run.grasp.expect("a grasp");
-    let [x, y, z] = grasp.estimate_error_m.expect("an estimate at the grasp");
-    assert!((x * x + y * y + z * z).sqrt() < 15e-3, "{grasp:?}");
+    let error_m = grasp_estimate_error_m(&run);
+    assert!(error_m < 15e-3, "part estimate off by {error_m} m");
 }
 
 #[test]
@@ -193,9 +198,7 @@ fn a_gripper_mark_the_forearm_cuts_is_not_taken_for_a_sighting() {
     for seed in [11_000_035, 11_000_205, 11_000_563] {
         let run = pick_through_images(seed);
         assert_eq!(run.result, PickResult::Success, "seed {seed}");
-        let grasp = run.grasp.expect("a grasp");
-        let [x, y, z] = grasp.estimate_error_m.expect("an estimate at the grasp");
-        let error_m = (x * x + y * y + z * z).sqrt();
+        let error_m = grasp_estimate_error_m(&run);
         assert!(
             error_m < 3e-3,
             "seed {seed}: part estimate off by {error_m} m"

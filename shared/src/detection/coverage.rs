@@ -101,31 +101,34 @@ impl Coverage {
         // a, b, c are y.
         let by_ys = [m30, m21, m12, m03];
         let tensor = |a: usize, b: usize, k: usize| by_ys.get(a + b + k).copied().unwrap_or(0.0);
-        let w = |r: usize, col: usize| {
+        let entry = |r: usize, col: usize| {
             whiten
                 .get(r)
                 .and_then(|row| row.get(col))
                 .copied()
                 .unwrap_or(0.0)
         };
-        // The whitened tensor's Frobenius norm: T'[i][j][k] = sum over a, b, c
-        // of W[i][a] W[j][b] W[k][c] T[a][b][c].
-        let mut squares = 0.0f32;
-        for i in 0..2 {
-            for j in 0..2 {
-                for k in 0..2 {
-                    let mut t = 0.0f32;
-                    for a in 0..2 {
-                        for b in 0..2 {
-                            for d in 0..2 {
-                                t += w(i, a) * w(j, b) * w(k, d) * tensor(a, b, d);
-                            }
-                        }
+        // T'[i][j][k] = sum over a, b, d of W[i][a] W[j][b] W[k][d] T[a][b][d].
+        let whitened = |i: usize, j: usize, k: usize| {
+            let mut t = 0.0f32;
+            for a in 0..2 {
+                for b in 0..2 {
+                    for d in 0..2 {
+                        t += entry(i, a) * entry(j, b) * entry(k, d) * tensor(a, b, d);
                     }
-                    squares += t * t;
                 }
             }
-        }
+            t
+        };
+        // The whitened tensor's Frobenius norm: each of its four distinct
+        // entries counted as often as it appears.
+        let (t0, t1, t2, t3) = (
+            whitened(0, 0, 0),
+            whitened(0, 0, 1),
+            whitened(0, 1, 1),
+            whitened(1, 1, 1),
+        );
+        let squares = t0 * t0 + 3.0 * t1 * t1 + 3.0 * t2 * t2 + t3 * t3;
         libm::sqrtf(squares)
     }
 }

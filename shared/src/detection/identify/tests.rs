@@ -810,15 +810,21 @@ mod disc {
             }
             blobs
         });
+        assert_reference_taken_from(&labels, 2, "the feature");
+    }
+
+    /// Blob 1 (`impostor`) never took the reference's label, and the true
+    /// reference (blob `reference`) did in some frame.
+    fn assert_reference_taken_from(labels: &[Option<usize>], reference: usize, impostor: &str) {
         for (k, label) in labels.iter().enumerate() {
             assert_ne!(
                 *label,
                 Some(1),
-                "frame {k}: the feature taken for the reference"
+                "frame {k}: {impostor} taken for the reference"
             );
         }
         assert!(
-            labels.contains(&Some(2)),
+            labels.contains(&Some(reference)),
             "the true reference was never labelled"
         );
     }
@@ -860,17 +866,7 @@ mod disc {
             }
             blobs
         });
-        for (k, label) in labels.iter().enumerate() {
-            assert_ne!(
-                *label,
-                Some(1),
-                "frame {k}: the key taken for the reference"
-            );
-        }
-        assert!(
-            labels.contains(&Some(4)),
-            "the true reference was never labelled"
-        );
+        assert_reference_taken_from(&labels, 4, "the key");
     }
 
     #[test]
