@@ -19,6 +19,8 @@
 //!
 //! Which candidate is which mark is decided elsewhere, from what the
 //! controller knows; this module only says where round bright things are.
+//! [`rim`] measures the disc's rim, the other thing a frame shows of the
+//! disc, over the pixels of its dark band.
 //!
 //! Working memory of a [`Detector`]: [`Detector::WORKING_MEMORY_BYTES`],
 //! 14,144 bytes for images up to 512 x 512 (held within 16 KiB at compile
@@ -30,6 +32,7 @@ pub mod components;
 pub mod coverage;
 pub mod identify;
 pub mod image;
+pub mod rim;
 
 use core::fmt;
 
