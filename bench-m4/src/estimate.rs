@@ -94,6 +94,7 @@ impl World {
             ))),
             part_px: Some(part),
             effector,
+            rim: None,
         }
     }
 
@@ -131,6 +132,7 @@ pub fn estimates(timer: &DualTimer) -> Option<()> {
         },
         reference_radius_m: REFERENCE_RADIUS_M,
         part_feature_count: FEATURES.len(),
+        disc_radius_m: None,
     };
     let mut world = World::new();
     let mut calibrator = reported(

@@ -77,6 +77,10 @@ fn run() -> Option<()> {
     if option_env!("BENCH_M4_ONLY") == Some("detect") {
         return detect_frame(&timer);
     }
+    // `BENCH_M4_ONLY=rim`: only the disc's rim in one frame.
+    if option_env!("BENCH_M4_ONLY") == Some("rim") {
+        return rim_frame(&timer);
+    }
     // `BENCH_M4_ONLY=estimate`: only the pick calibrator's two estimates.
     if option_env!("BENCH_M4_ONLY") == Some("estimate") {
         return super::estimate::estimates(&timer);
@@ -209,6 +213,7 @@ fn run() -> Option<()> {
 
     pick_tick(&timer, &model, &q);
     detect_frame(&timer)?;
+    rim_frame(&timer)?;
     super::estimate::estimates(&timer)?;
 
     let x = 0.7_f32;
@@ -271,6 +276,7 @@ fn pick_tick(timer: &timer::DualTimer, model: &Puma560<f32>, q: &Joints<f32>) {
         home_at_power_on: false,
         grasp_capture_m: [0.005, 0.010],
         grasp_capture_yaw_rad: 0.052,
+        disc_radius_m: None,
     };
     let Ok(mut pick) = PickController::new(&config, PickSettings::default(), 1) else {
         hprintln!("  pick tick: configuration refused");
@@ -389,6 +395,83 @@ fn detect_frame(timer: &timer::DualTimer) -> Option<()> {
         );
         return None;
     }
+    Some(())
+}
+
+/// The disc's rim in one 256 x 256 frame (`shared::detection::rim`): a disc
+/// seen at a slant (an ellipse of 47 by 42 px), its surface at 60 grey, a
+/// dark band 1.6 px wide at its edge (24) and the floor (50), by 4 x 4
+/// sub-pixels, as the host's criterion bench draws it. The rim
+/// found from the disc centre (the first frame) and from the last frame's
+/// (every later one). `None` (the bench fails) when it is not found.
+fn rim_frame(timer: &timer::DualTimer) -> Option<()> {
+    use shared::detection::identify::lens::LensModel;
+    use shared::detection::rim::{RimFinder, RimSettings};
+    use shared::detection::GrayImage;
+    const SIDE: usize = 256;
+    const LENS: LensModel = LensModel {
+        f_px: 290.0,
+        cx: 127.5,
+        cy: 127.5,
+        k1: 0.0,
+        k2: 0.0,
+    };
+    let (cx, cy, a, b) = (131.0f32, 124.0f32, 47.0f32, 42.0f32);
+    let inner = 1.0 - 1.6 / 45.0;
+    let mut pixels = [0u8; SIDE * SIDE];
+    for (i, pixel) in pixels.iter_mut().enumerate() {
+        let (x, y) = ((i % SIDE) as f32, (i / SIDE) as f32);
+        let mut sum = 0.0f32;
+        for k in 0..16 {
+            let (dx, dy) = (0.25 * (k % 4) as f32 - 0.375, 0.25 * (k / 4) as f32 - 0.375);
+            let (u, v) = ((x + dx - cx) / a, (y + dy - cy) / b);
+            let s2 = u * u + v * v;
+            sum += if s2 < inner * inner {
+                60.0
+            } else if s2 < 1.0 {
+                24.0
+            } else {
+                50.0
+            };
+        }
+        let light = 1.0 + 0.1 * (x - 128.0) / 128.0;
+        *pixel = (light * sum / 16.0) as u8;
+    }
+    let Ok(image) = GrayImage::packed(SIDE, SIDE, &pixels) else {
+        hprintln!("  rim: frame refused");
+        return None;
+    };
+    let mut finder = RimFinder::new(RimSettings::default());
+    let centre = [f64::from(cx), f64::from(cy)];
+    let first = match finder.find_from_centre(&image, &LENS, &[], centre) {
+        Ok(fit) => fit,
+        Err(error) => {
+            hprintln!("  rim: not found ({:?})", error);
+            return None;
+        }
+    };
+    let cold = timer.measure(1, || {
+        black_box(
+            finder
+                .find_from_centre(black_box(&image), &LENS, &[], centre)
+                .is_ok(),
+        )
+    });
+    let near = timer.measure(1, || {
+        black_box(
+            finder
+                .find_near(black_box(&image), &LENS, &[], &first, None)
+                .is_ok(),
+        )
+    });
+    hprintln!(
+        "  rim from the centre / from the last frame {:>9} / {:>9}   ({} px, {} iterations; {} B working memory)",
+        cold,
+        near,
+        first.pixels,
+        first.iterations,
+        RimFinder::WORKING_MEMORY_BYTES
+    );
     Some(())
 }
 

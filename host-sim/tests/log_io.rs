@@ -472,3 +472,55 @@ fn writer_refuses_what_the_reader_would_refuse_and_writes_nothing_then() {
     let back = read_log(Cursor::new(bytes)).expect("what was written is valid");
     assert_eq!(back.frames, vec![second]);
 }
+
+/// The project's additions (the header's `disc_radius_m`, a frame's `rim`):
+/// read back exactly, and a bad one is refused naming its field.
+#[test]
+fn the_rim_and_the_disc_radius_read_back_and_a_bad_rim_is_named() {
+    let rim = r#","rim":{"centre_px":[128.25,121.5],"semi_axes_px":[47.125,44.5],"angle_rad":0.25,"sigma_px":0.0065}"#;
+    let mut lines = valid_lines();
+    lines[0] = HEADER.replace(
+        "\"part_feature_count\":3",
+        "\"part_feature_count\":3,\"disc_radius_m\":0.45",
+    );
+    lines[1] = format!("{}{rim}}}", frame(0.0).trim_end_matches('}'));
+    let log = parse(&lines).unwrap();
+    assert_eq!(log.header.disc_radius_m, Some(0.45));
+    let read = log.frames[0].rim.unwrap();
+    assert_eq!(read.centre_px, [128.25, 121.5]);
+    assert_eq!(read.semi_axes_px, [47.125, 44.5]);
+    assert_eq!((read.angle_rad, read.sigma_px), (0.25, 0.0065));
+    assert!(log.frames[1].rim.is_none());
+    // Written and read again: the same.
+    let written = write_log(Vec::new(), &log).unwrap();
+    let again = read_log(Cursor::new(written)).unwrap();
+    assert_eq!(again.header, log.header);
+    assert_eq!(again.frames, log.frames);
+
+    let with = |edit: &str| {
+        let mut bad = lines.clone();
+        bad[1] = format!("{}{edit}}}", frame(0.0).trim_end_matches('}'));
+        parse(&bad)
+    };
+    assert_error(
+        with(
+            r#","rim":{"centre_px":[128.0,121.0],"semi_axes_px":[-1.0,44.0],"angle_rad":0.0,"sigma_px":0.01}"#,
+        ),
+        2,
+        Some("rim.semi_axes_px"),
+        "greater than 0",
+    );
+    assert_error(
+        with(r#","rim":{"centre_px":[128.0,121.0],"semi_axes_px":[40.0,44.0],"angle_rad":0.0}"#),
+        2,
+        Some("rim.sigma_px"),
+        "is missing",
+    );
+    assert_error(with(r#","rim":7"#), 2, Some("rim"), "object");
+    let mut bad = valid_lines();
+    bad[0] = HEADER.replace(
+        "\"part_feature_count\":3",
+        "\"part_feature_count\":3,\"disc_radius_m\":-0.45",
+    );
+    assert_error(parse(&bad), 1, Some("disc_radius_m"), "greater than 0");
+}

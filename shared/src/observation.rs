@@ -61,6 +61,10 @@ pub struct LogHeader {
     pub reference_radius_m: f64,
     /// How many feature points the part carries (2..=[`MAX_PART_FEATURES`]).
     pub part_feature_count: usize,
+    /// The disc's radius to its rim, m, where the rim is measured (this
+    /// project's addition: known, as `reference_radius_m` is).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub disc_radius_m: Option<f64>,
 }
 
 /// Two end-effector points seen in one frame: their images and their base-frame
@@ -88,6 +92,24 @@ pub struct ObservationFrame {
     pub part_px: Option<Vec<PixelPoint, MAX_PART_FEATURES>>,
     /// The end effector, when this frame shows it.
     pub effector: Option<EffectorSighting>,
+    /// The disc's rim measured in this frame (this project's addition to
+    /// the log: a reader that does not know it ignores it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rim: Option<RimObservation>,
+}
+
+/// The disc's rim (the circle of radius `disc_radius_m` on the disc's top)
+/// as one frame shows it: an ellipse in pinhole pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RimObservation {
+    /// The ellipse's centre, px.
+    pub centre_px: PixelPoint,
+    /// Its semi-axes along its own axes, px.
+    pub semi_axes_px: [f64; 2],
+    /// Angle of its first axis from the image's u axis, rad.
+    pub angle_rad: f64,
+    /// Standard deviation of its mean radius `sqrt(a b)` from this frame, px.
+    pub sigma_px: f64,
 }
 
 /// A rigid transform `p_to = rotation * p_from + translation_m`; `rotation` is a list of rows.

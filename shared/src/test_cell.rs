@@ -22,5 +22,6 @@ pub fn test_cell_config(conveyor_counts_per_rev: u32, part_feature_count: u8) ->
         home_at_power_on: false,
         grasp_capture_m: [0.005, 0.010],
         grasp_capture_yaw_rad: 0.052,
+        disc_radius_m: Some(0.45),
     }
 }

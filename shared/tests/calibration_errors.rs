@@ -38,6 +38,7 @@ fn reference_only(points: &[([f64; 2], f64)]) -> Vec<ObservationFrame> {
             reference_px: Some(pixel),
             part_px: None,
             effector: None,
+            rim: None,
         })
         .collect()
 }
@@ -316,6 +317,8 @@ fn pick_calibrator_packs_its_frames() {
     // conic (under 18.5 KiB without the indices: it was 32 KiB with every frame
     // laid out for eight features), plus 3.5 KiB for what it folds when they are
     // full (the arrowhead normal equations and two linearisation points), plus
-    // 576 B for the recent-bias windows that flag a creeping camera.
+    // 576 B for the recent-bias windows that flag a creeping camera, plus
+    // 352 B for the disc's rim (its running mean and the 16 points the
+    // refinement weighs).
     assert!(pick <= 24 * 1024, "{pick}");
 }

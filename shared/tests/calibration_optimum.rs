@@ -52,6 +52,7 @@ fn refined_estimate_reaches_the_likelihood_optimum() {
             reference_radius_m: 0.4,
             fix_base_height: false,
             folded: None,
+            rim: None,
         };
         let mut features = [nalgebra::Vector3::zeros(); MAX_PART_FEATURES];
         for (s, f) in features.iter_mut().zip(&workcell.features_rotating) {

@@ -37,6 +37,9 @@ pub const TRUTH_FILE: &str = "truth.jsonl";
 /// The ideal labelled log's name.
 pub const IDEAL_LOG_FILE: &str = "ideal.jsonl";
 
+/// Points of the true rim kept to score its measurement.
+const TRUE_RIM_POINTS: usize = 180;
+
 /// One mark of one frame, where it truly is.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct TrueMark {
@@ -59,6 +62,10 @@ pub struct TrueMark {
 pub struct TrueFrame {
     pub trigger_id: u64,
     pub marks: Vec<TrueMark>,
+    /// Points of the disc's rim through the pinhole, px (to score the rim's
+    /// measurement; not written to the truth file).
+    #[serde(skip)]
+    pub rim_pinhole_px: Vec<[f64; 2]>,
 }
 
 /// What was written.
@@ -232,6 +239,7 @@ impl FrameRenderer {
             reference_px: None,
             part_px: None,
             effector: None,
+            rim: None,
         };
         let mut part: Vec<Option<PixelPoint>> =
             vec![None; world.workcell().features_rotating.len()];
@@ -287,6 +295,13 @@ impl FrameRenderer {
             truth: TrueFrame {
                 trigger_id,
                 marks: true_marks,
+                rim_pinhole_px: (0..TRUE_RIM_POINTS)
+                    .filter_map(|k| {
+                        let phi = std::f64::consts::TAU * k as f64 / TRUE_RIM_POINTS as f64;
+                        let r = scene.disc_radius_m;
+                        pinhole.project(&nalgebra::Vector3::new(r * phi.cos(), r * phi.sin(), 0.0))
+                    })
+                    .collect(),
             },
             ideal,
         })

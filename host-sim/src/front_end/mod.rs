@@ -19,8 +19,11 @@ use shared::detection::identify::lens::LensModel;
 use shared::detection::identify::{
     Identifier, IdentifySettings, LabelledPoint, MarkDiameters, MarkLabel, MAX_LABELS,
 };
+use shared::detection::rim::{RimFinder, RimFit, RimSettings};
 use shared::detection::{Blob, Detector, DetectorSettings, GrayImage, MAX_BLOBS};
-use shared::observation::{EffectorSighting, LogHeader, ObservationFrame, LOG_VERSION};
+use shared::observation::{
+    EffectorSighting, LogHeader, ObservationFrame, RimObservation, LOG_VERSION,
+};
 
 use crate::camera_recording::{FrameRow, Polarity, Recording, RecordingHeader};
 use crate::log::ObservationLog;
@@ -35,6 +38,8 @@ pub struct FrameLabels {
     /// The frame's detections (a point's `blob` indexes them).
     pub blobs: Vec<Blob>,
     pub points: Vec<LabelledPoint>,
+    /// The disc's rim measured in this frame (undistorted px), if it was.
+    pub rim: Option<RimFit>,
 }
 
 /// What a front end run gave.
@@ -141,6 +146,17 @@ fn log_frame(
         reference_px: of(MarkLabel::Reference),
         part_px: part,
         effector,
+        rim: None,
+    }
+}
+
+/// The log's record of a rim the front end measured.
+pub fn rim_observation(fit: &RimFit) -> RimObservation {
+    RimObservation {
+        centre_px: fit.ellipse.centre_px,
+        semi_axes_px: fit.ellipse.semi_axes_px,
+        angle_rad: fit.ellipse.angle_rad,
+        sigma_px: fit.sigma_mean_radius_px,
     }
 }
 
@@ -151,6 +167,10 @@ pub struct FrontEnd {
     identifier: Box<Identifier>,
     blobs: HVec<Blob, MAX_BLOBS>,
     points: HVec<LabelledPoint, MAX_LABELS>,
+    rim_finder: Box<RimFinder>,
+    lens: LensModel,
+    /// The last frame's rim, the start of this frame's.
+    last_rim: Option<RimFit>,
     width: usize,
     height: usize,
     /// What it gave so far.
@@ -161,17 +181,22 @@ impl FrontEnd {
     /// A front end for the recording of `header`.
     pub fn new(header: &RecordingHeader) -> Result<Self> {
         let settings = identify_settings(header)?;
+        let lens = settings.lens;
         let log_header = LogHeader {
             version: LOG_VERSION,
             camera: header.camera,
             reference_radius_m: header.reference_radius_m,
             part_feature_count: header.part_feature_count,
+            disc_radius_m: Some(header.disc_radius_m),
         };
         Ok(Self {
             detector: Box::new(Detector::new(DetectorSettings::default())),
             identifier: Box::new(Identifier::new(settings)),
             blobs: HVec::new(),
             points: HVec::new(),
+            rim_finder: Box::new(RimFinder::new(RimSettings::default())),
+            lens,
+            last_rim: None,
             width: header.camera.width as usize,
             height: header.camera.height as usize,
             run: FrontEndRun {
@@ -207,6 +232,7 @@ impl FrontEnd {
             &mut self.points,
         );
         self.run.ambiguous += u64::from(report.ambiguous);
+        let rim = self.measure_rim(&image);
         if std::env::var_os("FRONT_END_DEBUG").is_some() {
             self.print_debug(row);
         }
@@ -229,20 +255,48 @@ impl FrontEnd {
             );
         }
         let t_s = row.capture_time_us as f64 * 1e-6;
-        let frame = log_frame(
+        let mut frame = log_frame(
             &self.run.log.header,
             t_s,
             row.conveyor_angle_rad,
             &self.points,
             &effector_base_m,
         );
+        frame.rim = rim.as_ref().map(rim_observation);
         self.run.log.frames.push(frame);
         self.run.frames.push(FrameLabels {
             trigger_id: row.trigger_id,
             blobs: self.blobs.to_vec(),
             points: self.points.to_vec(),
+            rim,
         });
         Ok(())
+    }
+
+    /// The rim of this frame: from the last frame's where there is one,
+    /// else from rays out of the disc centre's label; `None` when neither
+    /// gives it (then the next frame starts from the centre again).
+    fn measure_rim(&mut self, image: &GrayImage<'_>) -> Option<RimFit> {
+        let centre = self
+            .points
+            .iter()
+            .find(|p| p.label == MarkLabel::DiscCentre)
+            .and_then(|p| self.blobs.get(p.blob))
+            .map(|b| [f64::from(b.x_px), f64::from(b.y_px)]);
+        let near = self.last_rim.as_ref().and_then(|last| {
+            self.rim_finder
+                .find_near(image, &self.lens, &self.blobs, last, centre)
+                .ok()
+        });
+        let fit = near.or_else(|| {
+            centre.and_then(|c| {
+                self.rim_finder
+                    .find_from_centre(image, &self.lens, &self.blobs, c)
+                    .ok()
+            })
+        });
+        self.last_rim = fit;
+        fit
     }
 
     /// This frame's pair of free blobs and their lights against the yardstick.

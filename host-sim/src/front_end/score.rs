@@ -245,6 +245,7 @@ mod tests {
         let truth = [TrueFrame {
             trigger_id: 7,
             marks,
+            rim_pinhole_px: Vec::new(),
         }];
         let point = LabelledPoint {
             label,

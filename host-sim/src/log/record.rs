@@ -4,7 +4,7 @@
 use serde_json::Value;
 use shared::observation::{
     CameraIntrinsics, EffectorSighting, LogHeader, ObservationFrame, PixelPoint, Point3,
-    EFFECTOR_POINTS, LOG_VERSION, MAX_PART_FEATURES,
+    RimObservation, EFFECTOR_POINTS, LOG_VERSION, MAX_PART_FEATURES,
 };
 
 use super::error::{describe_value, LogError, LogProblem};
@@ -83,11 +83,18 @@ pub fn parse_header(line: usize, value: &Value) -> Result<LogHeader, LogError> {
             )
         })?;
 
+    // This project's addition: optional, positive where given.
+    let disc_radius_m = match record.object.get("disc_radius_m") {
+        None | Some(Value::Null) => None,
+        Some(_) => Some(record.positive("disc_radius_m", "disc_radius_m")?),
+    };
+
     Ok(LogHeader {
         version: LOG_VERSION,
         camera,
         reference_radius_m,
         part_feature_count,
+        disc_radius_m,
     })
 }
 
@@ -124,6 +131,7 @@ pub fn parse_frame(
     )?;
     let part_px = parse_part(&record, header.part_feature_count)?;
     let effector = parse_effector(&record)?;
+    let rim = parse_rim(&record)?;
 
     Ok(ObservationFrame {
         t_s,
@@ -132,7 +140,45 @@ pub fn parse_frame(
         reference_px,
         part_px,
         effector,
+        rim,
     })
+}
+
+/// The optional `rim` (this project's addition): an object of the ellipse's
+/// centre, semi-axes (positive), angle and sigma (positive).
+fn parse_rim(record: &Record<'_>) -> Result<Option<RimObservation>, LogError> {
+    match record.object.get("rim") {
+        None | Some(Value::Null) => return Ok(None),
+        Some(_) => {}
+    }
+    let line = record.line;
+    let rim = record.object("rim", "rim")?;
+    let centre_px = fields::pixel(
+        line,
+        "rim.centre_px",
+        rim.required("centre_px", "rim.centre_px")?,
+    )?;
+    let semi_axes_px = fields::pixel(
+        line,
+        "rim.semi_axes_px",
+        rim.required("semi_axes_px", "rim.semi_axes_px")?,
+    )?;
+    if !semi_axes_px.iter().all(|&a| a > 0.0) {
+        return Err(LogError::at_field(
+            line,
+            "rim.semi_axes_px",
+            LogProblem::OutOfRange {
+                expected: "two semi-axes greater than 0",
+                got: format!("{semi_axes_px:?}"),
+            },
+        ));
+    }
+    Ok(Some(RimObservation {
+        centre_px,
+        semi_axes_px,
+        angle_rad: rim.finite("angle_rad", "rim.angle_rad")?,
+        sigma_px: rim.positive("sigma_px", "rim.sigma_px")?,
+    }))
 }
 
 /// Checks the length of a JSON array before its items are decoded (so a huge

@@ -11,7 +11,8 @@ use std::io::Write;
 use serde::Serialize;
 use serde_json::Value;
 use shared::observation::{
-    CameraIntrinsics, LogHeader, ObservationFrame, PixelPoint, Point3, EFFECTOR_POINTS,
+    CameraIntrinsics, LogHeader, ObservationFrame, PixelPoint, Point3, RimObservation,
+    EFFECTOR_POINTS,
 };
 
 use super::error::{LogError, LogProblem};
@@ -26,6 +27,8 @@ struct HeaderLine<'a> {
     camera: &'a CameraIntrinsics,
     reference_radius_m: f64,
     part_feature_count: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    disc_radius_m: Option<f64>,
 }
 
 #[derive(Serialize)]
@@ -39,6 +42,8 @@ struct FrameLine<'a> {
     part_px: Option<&'a [PixelPoint]>,
     effector_px: Option<&'a [PixelPoint; EFFECTOR_POINTS]>,
     effector_base_m: Option<&'a [Point3; EFFECTOR_POINTS]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rim: Option<&'a RimObservation>,
 }
 
 fn to_value(line: usize, record: &impl Serialize) -> Result<Value, LogError> {
@@ -75,6 +80,7 @@ impl<W: Write> LogWriter<W> {
             camera: &header.camera,
             reference_radius_m: header.reference_radius_m,
             part_feature_count: header.part_feature_count,
+            disc_radius_m: header.disc_radius_m,
         };
         let header = parse_header(1, &to_value(1, &line)?)?;
         output
@@ -100,6 +106,7 @@ impl<W: Write> LogWriter<W> {
             part_px: frame.part_px.as_deref(),
             effector_px: frame.effector.as_ref().map(|e| &e.px),
             effector_base_m: frame.effector.as_ref().map(|e| &e.base_m),
+            rim: frame.rim.as_ref(),
         };
         parse_frame(
             line,

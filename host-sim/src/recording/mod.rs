@@ -189,6 +189,7 @@ pub fn simulate(scenario: &Scenario, seed: u64) -> Result<SimulatedRun, Generati
             reference_px,
             part_px,
             effector,
+            rim: None,
         });
     }
 

@@ -14,7 +14,7 @@
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use shared::detection::identify::MarkLabel;
-use shared::protocol::{CameraFeatureFrame, LabeledPoint, PointLabel};
+use shared::protocol::{CameraFeatureFrame, LabeledPoint, PointLabel, RimEllipse};
 
 use super::World;
 use crate::camera_recording::simulate::{FrameRenderer, TrueFrame};
@@ -97,6 +97,17 @@ impl ImageVision {
             trigger_id,
             capture_time_us: (world.time_s().max(0.0) * 1e6).round() as u64,
             points: heapless::Vec::new(),
+            rim: front_end
+                .run
+                .frames
+                .last()
+                .and_then(|f| f.rim.as_ref())
+                .map(|fit| RimEllipse {
+                    centre_px: fit.ellipse.centre_px.map(|c| c as f32),
+                    semi_axes_px: fit.ellipse.semi_axes_px.map(|a| a as f32),
+                    angle_rad: fit.ellipse.angle_rad as f32,
+                    sigma_px: fit.sigma_mean_radius_px as f32,
+                }),
         };
         // Diagnosis only: where the gripper's marks truly are, beside what
         // `EFFECTOR_DEBUG` says the front end made of them (printed, never
@@ -113,6 +124,9 @@ impl ImageVision {
                     m.index, m.image_px, m.visible
                 );
             }
+        }
+        if std::env::var_os("RIM_DEBUG").is_some() {
+            print_rim(front_end, &frame.truth, trigger_id);
         }
         let truth = std::slice::from_ref(&frame.truth);
         let judge = Judge::in_fixed_order(truth);
@@ -160,6 +174,27 @@ impl ImageVision {
         front_end.run.log.frames.clear();
         Ok(out)
     }
+}
+
+/// Diagnosis only: the rim the front end measured against the true rim's
+/// projection (mean and RMS distance, px; positive: the truth lies outside).
+fn print_rim(front_end: &FrontEnd, truth: &TrueFrame, trigger_id: u32) {
+    let Some(fit) = front_end.run.frames.last().and_then(|f| f.rim) else {
+        eprintln!("rim frame {trigger_id} none");
+        return;
+    };
+    let distances: Vec<f64> = truth
+        .rim_pinhole_px
+        .iter()
+        .filter_map(|p| fit.ellipse.locate(*p).map(|q| q.distance_px(1.0)))
+        .collect();
+    let n = distances.len().max(1) as f64;
+    let mean = distances.iter().sum::<f64>() / n;
+    let rms = (distances.iter().map(|d| d * d).sum::<f64>() / n).sqrt();
+    eprintln!(
+        "rim frame {trigger_id} mean {mean:+.4} rms {rms:.4} sigma_r {:.4} pixels {} sectors {} noise {:.2} contrast {:.1} iterations {} band {:.4}",
+        fit.sigma_mean_radius_px, fit.pixels, fit.sectors, fit.noise_grey, fit.contrast_grey, fit.iterations, fit.band_fraction
+    );
 }
 
 /// The true mark whose pinhole pixel is nearest `pixel`, described (what a

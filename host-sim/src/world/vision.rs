@@ -160,6 +160,8 @@ impl CameraSim {
             trigger_id,
             capture_time_us: (time_s.max(0.0) * 1e6).round() as u64,
             points: heapless::Vec::new(),
+            // Ideal points have no image, so no rim.
+            rim: None,
         };
         self.render_group(&mut frame, &[(PointLabel::DiscCenter, scene.centre_disc)]);
         self.render_group(&mut frame, &[(PointLabel::Reference, scene.reference_disc)]);

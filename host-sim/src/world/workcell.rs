@@ -30,6 +30,7 @@ impl Workcell {
             camera: self.camera.intrinsics,
             reference_radius_m: self.reference_radius_m,
             part_feature_count: self.features_rotating.len(),
+            disc_radius_m: None,
         }
     }
 

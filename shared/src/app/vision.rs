@@ -12,7 +12,9 @@ use heapless::Vec;
 
 use super::tool::effector_marks_base;
 use crate::fusion::LatchedSample;
-use crate::observation::{EffectorSighting, ObservationFrame, PixelPoint, MAX_PART_FEATURES};
+use crate::observation::{
+    EffectorSighting, ObservationFrame, PixelPoint, RimObservation, MAX_PART_FEATURES,
+};
 use crate::protocol::{CameraFeatureFrame, PointLabel};
 use crate::robot::{JointVector, Puma560};
 
@@ -151,6 +153,12 @@ pub fn observation_from_frame(
         reference_px: sorted.reference,
         part_px: (!part.is_empty()).then_some(part),
         effector,
+        rim: frame.rim.map(|rim| RimObservation {
+            centre_px: rim.centre_px.map(f64::from),
+            semi_axes_px: rim.semi_axes_px.map(f64::from),
+            angle_rad: f64::from(rim.angle_rad),
+            sigma_px: f64::from(rim.sigma_px),
+        }),
     })
 }
 
@@ -173,6 +181,7 @@ mod tests {
             trigger_id: 4,
             capture_time_us: 0,
             points: Vec::new(),
+            rim: None,
         };
         for &(label, u_px, v_px) in points {
             out.points.push(LabeledPoint { label, u_px, v_px }).unwrap();

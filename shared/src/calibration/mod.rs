@@ -50,6 +50,7 @@ pub mod pinhole;
 pub mod recent_bias;
 pub mod records;
 pub mod refine;
+pub mod rim;
 pub mod store;
 pub mod uncertainty;
 pub mod virtual_rotation;

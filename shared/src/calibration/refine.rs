@@ -19,6 +19,7 @@ use super::normal_blocks::{
 };
 use super::pinhole::Pinhole;
 use super::records::EffectorRecord;
+use super::rim::RimSummary;
 
 /// What the refinement sees: stored observations and how to treat them.
 #[derive(Clone, Copy)]
@@ -37,6 +38,8 @@ pub struct Problem<'a> {
     pub fix_base_height: bool,
     /// The observations the store had no room for, as normal equations.
     pub folded: Option<&'a FoldedInformation>,
+    /// The disc's rim averaged over the frames, where it was measured.
+    pub rim: Option<&'a RimSummary>,
 }
 
 impl Problem<'_> {
@@ -58,8 +61,11 @@ struct Loss {
     huber_px: f64,
     gate_px: Option<f64>,
     /// The noise this phase assumes, px: what counts as progress is measured
-    /// in its variance ([`PROGRESS_CHI2`]).
+    /// in its variance ([`PROGRESS_CHI2`]), and the rim is weighed against it.
     sigma_px: f64,
+    /// Whether the pass adds the rim's terms (not the covariance's pass,
+    /// whose noise is measured in that pass: `at_optimum` adds them after).
+    weighs_rim: bool,
 }
 
 impl Loss {
@@ -142,6 +148,9 @@ fn total_cost(problem: &Problem<'_>, model: &WorkcellModel, loss: &Loss) -> f64 
         };
     });
     cost + problem.folded.map_or(0.0, |folded| folded.cost(model))
+        + problem
+            .rim
+            .map_or(0.0, |rim| rim.cost(model, &problem.pinhole, loss.sigma_px))
 }
 
 /// What the normal equations are summed in.
@@ -232,6 +241,12 @@ fn normal_equations(
     if let Some(folded) = problem.folded {
         folded.add_to(blocks, model);
         pass.cost += folded.cost(model);
+    }
+    // The rim's weight is relative to the pixel noise the loss assumes; the
+    // covariance's pass adds it once that noise is measured (`at_optimum`).
+    if let (Some(rim), true) = (problem.rim, loss.weighs_rim) {
+        rim.add_to(blocks, model, &problem.pinhole, loss.sigma_px);
+        pass.cost += rim.cost(model, &problem.pinhole, loss.sigma_px);
     }
     pass
 }
@@ -463,6 +478,7 @@ fn fit(
         huber_px: config.huber_k * sigma,
         gate_px: None,
         sigma_px: sigma,
+        weighs_rim: true,
     };
     let mut sums = Sums::Mixed;
     let model = minimise(problem, start, &phase1, config.max_iterations, &mut sums)?;
@@ -471,6 +487,7 @@ fn fit(
         huber_px: config.huber_k * sigma_robust,
         gate_px: Some(config.outlier_gate_sigma * sigma_robust.max(sigma)),
         sigma_px: sigma_robust,
+        weighs_rim: true,
     };
     let model = minimise(problem, model, &phase2, config.max_iterations, &mut sums)?;
     Ok(Fit {
@@ -507,6 +524,7 @@ fn at_optimum(
         gate_px: Some(gate),
         // Only the progress rule reads it, and no iteration runs here.
         sigma_px: 1.0,
+        weighs_rim: false,
     };
     let mut blocks = NormalBlocks::zeros();
     let pass = normal_equations(problem, model, &unit, sums, false, &mut blocks);
@@ -523,6 +541,9 @@ fn at_optimum(
     }
     let rms_px = libm::sqrt(squares / f64::from(kept));
     let variance = (rms_px * rms_px / 2.0).max(1e-30);
+    if let Some(rim) = problem.rim {
+        rim.add_to(&mut blocks, model, &problem.pinhole, libm::sqrt(variance));
+    }
     Ok(Optimum {
         rms_px,
         outliers,

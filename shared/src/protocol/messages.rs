@@ -56,6 +56,22 @@ pub struct CameraFeatureFrame {
     pub capture_time_us: u64,
     /// The points detected, each labelled.
     pub points: Vec<LabeledPoint, MAX_FEATURE_POINTS>,
+    /// The disc's rim as this frame shows it, where the vision computer
+    /// measures it (`crate::detection::rim`). Added in v9.
+    pub rim: Option<RimEllipse>,
+}
+
+/// The disc's rim in one frame: an ellipse in pinhole pixels (as the points).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RimEllipse {
+    /// Centre, px.
+    pub centre_px: [f32; 2],
+    /// Semi-axes along its own axes, px.
+    pub semi_axes_px: [f32; 2],
+    /// Angle of its first axis from the u axis, rad.
+    pub angle_rad: f32,
+    /// Standard deviation of its mean radius from this frame, px.
+    pub sigma_px: f32,
 }
 
 /// Encoder readings of the plant, sent by a simulated (or remote) plant when the

@@ -44,9 +44,11 @@ pub use messages::*;
 /// base frame (what decides whether the pick shows its marks once more).
 /// v8: `FaultCause::DiscNotSeen` (a search that ends without the marks and
 /// without a frame of the disc's reference mark says so).
+/// v9: `CameraFeatureFrame::rim` and `CellConfig::disc_radius_m`: the disc's
+/// rim measured in each frame, an observation of the camera's pose.
 /// The handshake
 /// refuses any other version with `UnsupportedVersion` (detail: this one).
-pub const PROTOCOL_VERSION: u16 = 8;
+pub const PROTOCOL_VERSION: u16 = 9;
 
 #[cfg(test)]
 mod tests;

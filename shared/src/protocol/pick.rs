@@ -56,6 +56,9 @@ pub struct CellConfig {
     pub grasp_capture_m: [f32; 2],
     /// The same for the part's yaw, rad. Added in v7.
     pub grasp_capture_yaw_rad: f32,
+    /// The disc's radius to its rim, m, where the vision computer measures
+    /// the rim (`CameraFeatureFrame::rim`). Added in v9.
+    pub disc_radius_m: Option<f32>,
 }
 
 /// Where the pick stands.

@@ -40,11 +40,18 @@ fn arb_camera() -> impl Strategy<Value = CameraFeatureFrame> {
         any::<u32>(),
         any::<u64>(),
         pvec(arb_point(), 0..=MAX_FEATURE_POINTS),
+        proptest::option::of(any::<[f32; 6]>()),
     )
-        .prop_map(|(trigger_id, t, pts)| CameraFeatureFrame {
+        .prop_map(|(trigger_id, t, pts, rim)| CameraFeatureFrame {
             trigger_id,
             capture_time_us: t,
             points: Vec::from_slice(&pts).expect("bounded by strategy"),
+            rim: rim.map(|[u, v, a, b, angle, sigma]| RimEllipse {
+                centre_px: [u, v],
+                semi_axes_px: [a, b],
+                angle_rad: angle,
+                sigma_px: sigma,
+            }),
         })
 }
 
@@ -295,6 +302,12 @@ fn the_largest_messages_fit_the_documented_frame() {
         trigger_id: u32::MAX,
         capture_time_us: u64::MAX,
         points: Vec::from_slice(&[point; MAX_FEATURE_POINTS]).expect("full"),
+        rim: Some(RimEllipse {
+            centre_px: [f32::MAX; 2],
+            semi_axes_px: [f32::MIN; 2],
+            angle_rad: f32::MAX,
+            sigma_px: f32::MAX,
+        }),
     };
     let worst = [
         Message::Hello {
@@ -410,7 +423,7 @@ fn the_documented_frame_limits_hold() {
 /// `CalibrationReport`, and the version says so.
 #[test]
 fn v2_appends_the_trigger_event_and_keeps_v1_encodings() {
-    assert_eq!(PROTOCOL_VERSION, 8);
+    assert_eq!(PROTOCOL_VERSION, 9);
     // postcard writes the variant index first: RuntimeReport was the last of
     // v1 (index 13), TriggerEvent is 14.
     let event = wire_bytes(&Message::TriggerEvent(TriggerEvent {

@@ -172,6 +172,7 @@ impl Workcell {
             camera: self.intrinsics,
             reference_radius_m: self.reference_radius_m,
             part_feature_count: self.features_rotating.len(),
+            disc_radius_m: None,
         }
     }
 
@@ -280,6 +281,7 @@ impl Workcell {
                 reference_px,
                 part_px,
                 effector,
+                rim: None,
             }
         }
     }

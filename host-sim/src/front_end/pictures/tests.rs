@@ -76,6 +76,7 @@ fn labels_are_drawn_in_their_colour_at_their_blob_and_nowhere_else() {
             point(MarkLabel::Reference, 0),
             point(MarkLabel::PartFeature(2), 1),
         ],
+        rim: None,
     };
     let mut canvas = plain.clone();
     draw_labels(
@@ -135,6 +136,7 @@ fn the_busiest_stretch_is_chosen_wrong_labels_first() {
         points: (0..labels)
             .map(|_| point(MarkLabel::DiscCentre, 0))
             .collect(),
+        rim: None,
     };
     let frames: Vec<FrameLabels> = [0, 1, 3, 3, 0, 4, 4, 4]
         .iter()
@@ -164,6 +166,7 @@ fn the_busiest_stretch_is_chosen_wrong_labels_first() {
                 visible: true,
                 shows: true,
             }],
+            rim_pinhole_px: Vec::new(),
         })
         .collect();
     let judge = Judge::new(&frames, &truth);

@@ -4,7 +4,7 @@
 use heapless::{String as HString, Vec as HVec};
 use shared::protocol::{
     ActuatorCommand, CameraFeatureFrame, GripperCommand, LabeledPoint, Message, MessageKind,
-    PointLabel, SensorSample, JOINTS, MAX_FEATURE_POINTS, MAX_FRAME_LEN,
+    PointLabel, RimEllipse, SensorSample, JOINTS, MAX_FEATURE_POINTS, MAX_FRAME_LEN,
 };
 
 use super::outcome::{CheckError, ExchangeSummary};
@@ -85,10 +85,18 @@ fn camera_frame(trigger_id: u32, rng: &mut SplitMix64) -> CameraFeatureFrame {
             break;
         }
     }
+    // Every other frame carries a rim, so that both shapes cross the link.
+    let rim = trigger_id.is_multiple_of(2).then(|| RimEllipse {
+        centre_px: [rng.unit() * 640.0, rng.unit() * 480.0],
+        semi_axes_px: [40.0 + rng.unit(), 30.0 + rng.unit()],
+        angle_rad: rng.unit(),
+        sigma_px: 0.01,
+    });
     CameraFeatureFrame {
         trigger_id,
         capture_time_us: rng.next() >> 16,
         points,
+        rim,
     }
 }
 

@@ -194,6 +194,8 @@ impl World {
             home_at_power_on: self.experiment.robot.homing.counters_start_anywhere,
             grasp_capture_m: [gripper.horizontal_m as f32, gripper.vertical_m as f32],
             grasp_capture_yaw_rad: gripper.yaw_deg.to_radians() as f32,
+            // The disc's drawing gives its radius, as it gives the reference's.
+            disc_radius_m: Some(super::dimensions::DISC_RADIUS_M as f32),
         }
     }
 

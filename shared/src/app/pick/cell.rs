@@ -66,6 +66,9 @@ impl Cell {
         check(config.cx_px.is_finite(), "cx_px")?;
         check(config.cy_px.is_finite(), "cy_px")?;
         check(positive(config.reference_radius_m), "reference_radius_m")?;
+        if let Some(radius) = config.disc_radius_m {
+            check(positive(radius), "disc_radius_m")?;
+        }
         check(
             (2..=MAX_PART_FEATURES).contains(&usize::from(config.part_feature_count)),
             "part_feature_count",
@@ -127,6 +130,7 @@ impl Cell {
             },
             reference_radius_m: f64::from(c.reference_radius_m),
             part_feature_count: usize::from(c.part_feature_count),
+            disc_radius_m: c.disc_radius_m.map(f64::from),
         }
     }
 

@@ -86,6 +86,13 @@ pub(super) fn check_header(header: &LogHeader) -> Result<(), CalibrationError> {
         }
     }
     let (min_radius_m, max_radius_m) = REFERENCE_RADIUS_RANGE_M;
+    if let Some(disc_radius_m) = header.disc_radius_m {
+        if !(disc_radius_m.is_finite() && (min_radius_m..=max_radius_m).contains(&disc_radius_m)) {
+            return Err(CalibrationError::InvalidHeader {
+                field: "disc_radius_m",
+            });
+        }
+    }
     if !(header.reference_radius_m.is_finite()
         && (min_radius_m..=max_radius_m).contains(&header.reference_radius_m))
     {
@@ -232,6 +239,23 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
                 .sum();
             if !exceeds(distance_squared, 1e-12) {
                 return Err(CalibrationError::CoincidingEffectorPoints { frame: index });
+            }
+        }
+        if let Some(rim) = &frame.rim {
+            let numbers = rim
+                .centre_px
+                .iter()
+                .chain(&rim.semi_axes_px)
+                .chain([&rim.angle_rad, &rim.sigma_px]);
+            if !numbers.into_iter().all(|v| v.is_finite()) {
+                return Err(non_finite("rim"));
+            }
+            if !(rim.semi_axes_px.iter().all(|&a| a > 0.0) && rim.sigma_px > 0.0) {
+                return Err(CalibrationError::ValueOutOfRange {
+                    frame: index,
+                    field: "rim",
+                    limit: 0.0,
+                });
             }
         }
         Ok(ValidFrame {

@@ -28,6 +28,7 @@ use super::model::WorkcellModel;
 use super::pinhole::Pinhole;
 use super::records::EffectorRecord;
 use super::refine::{refine, Problem, Refined};
+use super::rim::{RimAccumulator, RimSummary};
 use super::store::ThinningStore;
 use super::uncertainty::EstimateUncertainty;
 use crate::angle::wrap_pi;
@@ -75,6 +76,10 @@ pub struct SelfCalibrator<
     folded: Option<FoldedInformation>,
     /// Times the folded information was found inconsistent and dropped.
     folds_discarded: u32,
+    /// The frames' rims averaged (where the header gives the disc's radius).
+    rim: RimAccumulator,
+    /// What the refinement weighs of it, kept up to date with each rim.
+    rim_summary: Option<RimSummary>,
 }
 
 /// What an estimate does when no sighting places `base_from_disc` yet.
@@ -113,6 +118,8 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
             last_estimate: None,
             folded: None,
             folds_discarded: 0,
+            rim: RimAccumulator::default(),
+            rim_summary: None,
         })
     }
 
@@ -144,6 +151,12 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
         }
         if detected || frame.effector.is_some() {
             self.frames_used = self.frames_used.saturating_add(1);
+        }
+        if let (Some(rim), Some(radius)) = (&frame.rim, self.header.disc_radius_m) {
+            // A refused rim is counted ([`SelfCalibrator::rims`]), the frame kept.
+            if self.rim.add(rim).is_ok() {
+                self.rim_summary = self.rim.summary(radius);
+            }
         }
         if detected {
             let (feature_count, radius) = (
@@ -311,7 +324,13 @@ impl<const FRAMES: usize, const EFFECTOR_FRAMES: usize, const PIXELS_PER_FRAME: 
             reference_radius_m: self.header.reference_radius_m,
             fix_base_height: self.config.disc_height_in_base_m.is_some(),
             folded: self.folded.as_ref(),
+            rim: self.rim_summary.as_ref(),
         }
+    }
+
+    /// Rims averaged and rims gated away so far.
+    pub fn rims(&self) -> (u32, u32) {
+        (self.rim.count(), self.rim.gated())
     }
 
     fn rms_reprojection(&self, model: &WorkcellModel) -> f64 {
