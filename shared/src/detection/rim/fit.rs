@@ -194,6 +194,8 @@ impl Geometry {
 /// A pixel's view of the model: its sector, the three levels' weights and
 /// their derivatives along the parameters.
 struct Modelled {
+    /// Whether the pixel is on an edge's ramp (its Jacobian is not zero).
+    on_ramp: bool,
     basis: Vector3<f64>,
     jacobian: SMatrix<f64, 3, PARAMETERS>,
 }
@@ -244,7 +246,11 @@ fn model(
             );
         }
     }
-    Some(Modelled { basis, jacobian })
+    Some(Modelled {
+        on_ramp: slope_o != 0.0 || slope_i != 0.0,
+        basis,
+        jacobian,
+    })
 }
 
 /// Each sector's levels `(floor, band, surface)`, or `None` where the sector
@@ -608,17 +614,21 @@ impl RimFinder {
                 let w = (1.0 - u * u) * (1.0 - u * u);
                 pixel.weight = w as f32;
                 used += 1;
-                let row = level.transpose() * m.jacobian;
-                normal += row.transpose() * row * w;
-                gradient += row.transpose() * (w * residual);
-                if let (Some(v), Some(c), Some(g)) = (
-                    level_normal.get_mut(sector),
-                    cross.get_mut(sector),
-                    level_gradient.get_mut(sector),
-                ) {
+                if let (Some(v), Some(g)) =
+                    (level_normal.get_mut(sector), level_gradient.get_mut(sector))
+                {
                     *v += m.basis * m.basis.transpose() * w;
-                    *c += row.transpose() * m.basis.transpose() * w;
                     *g += m.basis * (w * residual);
+                }
+                // Off both ramps a pixel's row is zero: it adds nothing to
+                // the edges' blocks (most pixels; the sums are the same).
+                if m.on_ramp {
+                    let row = level.transpose() * m.jacobian;
+                    normal += row.transpose() * row * w;
+                    gradient += row.transpose() * (w * residual);
+                    if let Some(c) = cross.get_mut(sector) {
+                        *c += row.transpose() * m.basis.transpose() * w;
+                    }
                 }
             }
             for ((v, c), g) in level_normal.iter().zip(&cross).zip(&level_gradient) {
