@@ -251,21 +251,26 @@ pub fn trial_seed(seed: u64, trial: usize) -> u64 {
 /// Points of the true rim a frame's fit is scored at.
 const RIM_SCORE_POINTS: usize = 180;
 
+/// The rim's finder over a trial and its last fit (the next frame's start).
+struct RimTrack {
+    finder: Box<RimFinder>,
+    last: Option<RimFit>,
+}
+
 /// Measures the disc's rim in a noisy frame, from the last frame's fit or
 /// else from rays out of the disc centre mark's true image (this check
 /// scores the measurement, not the start), and scores it against the
 /// rim's true projection.
-#[allow(clippy::too_many_arguments)]
 fn measure_rim(
     renderer: &Renderer,
     scene: &crate::world::render::scene::Scene,
     frame: &GrayFrame,
     blobs: &[Blob],
     marks: &[MarkImage],
-    finder: &mut RimFinder,
-    last: &mut Option<RimFit>,
+    track: &mut RimTrack,
     tally: &mut Tally,
 ) -> Result<()> {
+    let RimTrack { finder, last } = track;
     let camera = renderer.camera();
     let lens = LensModel {
         f_px: camera.pinhole.intrinsics.f_px,
@@ -329,8 +334,10 @@ pub fn run_trial(experiment: &PickExperiment, seed: u64, options: &CheckOptions)
         pixels: Vec::new(),
     };
     let mut triggers = 0usize;
-    let mut rim_finder = Box::new(RimFinder::new(RimSettings::default()));
-    let mut last_rim: Option<RimFit> = None;
+    let mut rim_track = RimTrack {
+        finder: Box::new(RimFinder::new(RimSettings::default())),
+        last: None,
+    };
     let mut link = FramedLink::new(InProcessLink::new());
     let mut observe =
         |world: &crate::world::World, command: &shared::protocol::ActuatorCommand| -> Result<()> {
@@ -383,8 +390,7 @@ pub fn run_trial(experiment: &PickExperiment, seed: u64, options: &CheckOptions)
                 &frame,
                 &blobs,
                 &marks,
-                &mut rim_finder,
-                &mut last_rim,
+                &mut rim_track,
                 &mut tally,
             )?;
 
