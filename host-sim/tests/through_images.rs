@@ -20,6 +20,20 @@ fn grasp_estimate_error_m(run: &PickRun) -> f64 {
     (x * x + y * y + z * z).sqrt()
 }
 
+/// The picks of workcells `seeds` through images succeed with the part's
+/// estimate at the grasp within `limit_m` of the truth.
+fn assert_part_within(seeds: &[u64], limit_m: f64) {
+    for &seed in seeds {
+        let run = pick_through_images(seed);
+        assert_eq!(run.result, PickResult::Success, "seed {seed}");
+        let error_m = grasp_estimate_error_m(&run);
+        assert!(
+            error_m < limit_m,
+            "seed {seed}: part estimate off by {error_m} m"
+        );
+    }
+}
+
 /// The pick of workcell `seed` through images succeeds with a grasp.
 fn assert_grasps_through_images(seed: u64) {
     let run = pick_through_images(seed);
@@ -195,15 +209,7 @@ fn a_gripper_mark_the_forearm_cuts_is_not_taken_for_a_sighting() {
     // off and the part at the grasp 4.1 and 6.3 mm; with the cut blobs
     // left unlabelled, under 2 mm. In cell 563 the cut blobs shrank
     // to 16 to 19 px: 4.0 mm, 2.2 mm once blobs of that size are judged.
-    for seed in [11_000_035, 11_000_205, 11_000_563] {
-        let run = pick_through_images(seed);
-        assert_eq!(run.result, PickResult::Success, "seed {seed}");
-        let error_m = grasp_estimate_error_m(&run);
-        assert!(
-            error_m < 3e-3,
-            "seed {seed}: part estimate off by {error_m} m"
-        );
-    }
+    assert_part_within(&[11_000_035, 11_000_205, 11_000_563], 3e-3);
 }
 
 #[test]
@@ -214,13 +220,5 @@ fn the_discs_rim_sets_the_cameras_height_where_the_reference_reads_off() {
     // alone the camera's height came off and the part at the grasp 3.6
     // and 3.0 mm. The rim, measured over its band in every frame, gives
     // the height: 0.1 and 1.4 mm.
-    for seed in [11_000_747, 11_000_489] {
-        let run = pick_through_images(seed);
-        assert_eq!(run.result, PickResult::Success, "seed {seed}");
-        let error_m = grasp_estimate_error_m(&run);
-        assert!(
-            error_m < 2e-3,
-            "seed {seed}: part estimate off by {error_m} m"
-        );
-    }
+    assert_part_within(&[11_000_747, 11_000_489], 2e-3);
 }

@@ -83,6 +83,22 @@ impl Locator {
         Some((s - 1.0) * s / libm::sqrt(g2))
     }
 
+    /// Where `point` lies ([`Ellipse::locate`]), or `None` at the centre.
+    pub fn locate(&self, point: [f64; 2]) -> Option<EllipsePoint> {
+        let (xa, yb) = self.scaled(point);
+        let s = libm::sqrt(xa * xa + yb * yb);
+        if s <= 1e-9 || !s.is_finite() {
+            return None;
+        }
+        let [ia, ib] = self.inverse_axes;
+        let gradient = libm::sqrt((xa * ia) * (xa * ia) + (yb * ib) * (yb * ib)) / s;
+        Some(EllipsePoint {
+            s,
+            gradient,
+            phase_rad: libm::atan2(yb, xa),
+        })
+    }
+
     /// [`EllipsePoint::phase_rad`].
     pub fn phase_rad(&self, point: [f64; 2]) -> f64 {
         let (xa, yb) = self.scaled(point);
@@ -122,23 +138,7 @@ impl Ellipse {
 
     /// Where `point` lies with respect to the ellipse, or `None` at its centre.
     pub fn locate(&self, point: [f64; 2]) -> Option<EllipsePoint> {
-        let [a, b] = self.semi_axes_px;
-        let (sin, cos) = libm::sincos(self.angle_rad);
-        let dx = point[0] - self.centre_px[0];
-        let dy = point[1] - self.centre_px[1];
-        let x = cos * dx + sin * dy;
-        let y = -sin * dx + cos * dy;
-        let (xa, yb) = (x / a, y / b);
-        let s = libm::sqrt(xa * xa + yb * yb);
-        if s <= 1e-9 || !s.is_finite() {
-            return None;
-        }
-        let gradient = libm::sqrt((xa / a) * (xa / a) + (yb / b) * (yb / b)) / s;
-        Some(EllipsePoint {
-            s,
-            gradient,
-            phase_rad: libm::atan2(yb, xa),
-        })
+        self.locator().locate(point)
     }
 
     /// The point of the ellipse at `phase_rad` (as [`EllipsePoint::phase_rad`]).

@@ -411,11 +411,11 @@ impl RimFinder {
         let reach_out = 1.0 + s.outer_reach_px / r;
         // The box the outer reach's distorted image spans.
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        let outer = Ellipse {
+            semi_axes_px: start.ellipse.semi_axes_px.map(|a| a * reach_out),
+            ..start.ellipse
+        };
         for k in 0..64 {
-            let outer = Ellipse {
-                semi_axes_px: start.ellipse.semi_axes_px.map(|a| a * reach_out),
-                ..start.ellipse
-            };
             let p = lens.distort(outer.point_at(core::f64::consts::TAU * k as f64 / 64.0));
             for axis in 0..2 {
                 if let (Some(l), Some(h), Some(&v)) =

@@ -23,6 +23,7 @@ const LENS: LensModel = LensModel {
 };
 
 /// A camera over the disc: its centre in the disc frame and its axes.
+#[derive(Clone)]
 struct Camera {
     centre: Vector3<f64>,
     disc_from_camera: Rotation3<f64>,
@@ -63,6 +64,7 @@ impl Camera {
     }
 }
 
+#[derive(Clone)]
 struct Scene {
     camera: Camera,
     radius_m: f64,
@@ -184,7 +186,7 @@ fn with_noise_the_rim_is_unbiased_and_its_sigma_is_honest() {
         let noiseless = measure(
             &Scene {
                 noise: 0.0,
-                ..scene_copy(&scene)
+                ..scene.clone()
             },
             1,
         )
@@ -207,19 +209,6 @@ fn with_noise_the_rim_is_unbiased_and_its_sigma_is_honest() {
         rms < 3.0 * sigma && rms > sigma / 4.0,
         "rms {rms:.4} sigma {sigma:.4}"
     );
-}
-
-fn scene_copy(scene: &Scene) -> Scene {
-    Scene {
-        camera: Camera {
-            centre: scene.camera.centre,
-            disc_from_camera: scene.camera.disc_from_camera,
-        },
-        radius_m: scene.radius_m,
-        band_m: scene.band_m,
-        noise: scene.noise,
-        blocker: scene.blocker,
-    }
 }
 
 #[test]
