@@ -9,47 +9,45 @@
 //! is the levels it covers, weighed by how much of it each covers (a
 //! one-pixel ramp across each edge, as a sensor's pixel area gives).
 
-use heapless::Vec;
-use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+use nalgebra::{Matrix3, SMatrix, Vector3};
 
 use super::ellipse::{Ellipse, Locator};
-use super::seed::{near_a_mark, seed_ellipse};
+use super::model::{
+    concentric_coefficients, ellipse_coefficients, EdgeConic, PixelModel, PARAMETERS,
+};
+use super::pixels::{Classified, PassPixel, RimPixels, ZONE_NEAR};
+pub use super::pixels::{MAX_RIM_PIXELS, RIM_SECTORS};
+use super::seed::seed_ellipse;
+use super::sums::{Gradient, Normal, PassSums};
 use super::RimError;
 use crate::detection::identify::lens::LensModel;
-use crate::detection::MAX_BLOBS;
 use crate::detection::{Blob, GrayImage};
 
-/// Sectors round the rim, each with its own three levels (light varies
-/// round the image; the disc's texture round the disc).
-pub const RIM_SECTORS: usize = 32;
-/// Most pixels the fit holds; more near the band are taken one in so many.
-pub const MAX_RIM_PIXELS: usize = 4096;
-/// Ellipse (centre x, y, semi-axes a, b, angle times the mean radius) and
-/// the band's width: all in px at the rim, so the steps are alike in scale.
-const PARAMETERS: usize = 6;
-/// Ramp widths of the first iterations, px: a wide ramp first so that a
-/// start a pixel or two off still sees the edges, then the pixel's own.
+/// Ramp widths of the first iterations from the disc centre, px: a wide
+/// ramp first so that a start a pixel or two off still sees the edges, then
+/// the pixel's own (1 px).
 const RAMP_SCHEDULE: [f64; 3] = [3.0, 2.0, 1.5];
-/// The same from the last frame's fit.
-const NEAR_SCHEDULE: [f64; 1] = [1.5];
+/// From the last frame's fit, a hundredth of a pixel off: the pixel's own
+/// ramp at once (a wider ramp's optimum lies tenths of a pixel away, and
+/// coming back from it cost steps).
+const NEAR_SCHEDULE: [f64; 0] = [];
+/// A first step from the last frame's fit longer than this, px, means the
+/// rim moved (the camera was knocked): the fit gives up, and the caller
+/// starts again from the disc centre.
+const NEAR_TRUST_PX: f64 = 0.25;
 /// A step that moves no edge by more than this (px) ends the iterations:
 /// a third of a frame's sigma of the mean radius. The ramps are piecewise
 /// linear, so the steps do not shrink to nothing: pixels entering and
 /// leaving a ramp keep them at about a thousandth of a pixel.
 const CONVERGED_PX: f64 = 2e-3;
-/// Finite-difference step of the ellipse's parameters, px.
+/// Finite-difference step of the edges' coefficients along the
+/// parameters, px.
 const STEP_PX: f64 = 1e-4;
-/// Bins of 0.25 grey for the residuals' median.
-const HISTOGRAM_BINS: usize = 256;
+/// A pixel's zone is worked out with the ramps this much wider, px, and
+/// kept while the edges move less than half of it.
+const ZONE_MARGIN_PX: f64 = 0.4;
 /// Tukey's biweight constant.
 const TUKEY: f64 = 4.685;
-/// Least scale of the residuals, grey levels: an image without noise still
-/// rounds to whole grey levels, and a real edge is no exact ramp, so that
-/// a cutoff of a grey level or so would drop the edge pixels themselves.
-const MIN_SCALE_GREY: f64 = 1.0;
-
-type Normal = SMatrix<f64, PARAMETERS, PARAMETERS>;
-type Gradient = SVector<f64, PARAMETERS>;
 
 /// What the rim fit accepts.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -120,15 +118,6 @@ pub struct RimFit {
     pub last_step_px: f64,
 }
 
-#[derive(Debug, Clone, Copy, Default)]
-struct RimPixel {
-    /// Undistorted position, px.
-    x: f32,
-    y: f32,
-    value: f32,
-    weight: f32,
-}
-
 /// The ellipse and band being fitted, and the disc centre's image that
 /// places the band's inner edge ([`Ellipse::concentric`]).
 #[derive(Debug, Clone, Copy)]
@@ -138,41 +127,56 @@ struct Geometry {
     pole: [f64; 2],
 }
 
-/// The band's two edges, ready to place pixels.
-#[derive(Debug, Clone, Copy)]
-struct Edges {
-    outer: Locator,
-    inner: Locator,
-}
-
 impl Geometry {
     fn radius(&self) -> f64 {
         self.ellipse.mean_radius_px().max(1.0)
     }
 
-    fn edges(&self) -> Option<Edges> {
-        Some(Edges {
-            outer: self.ellipse.locator(),
-            inner: self
-                .ellipse
-                .concentric(self.pole, self.band_fraction)?
-                .locator(),
-        })
+    /// The two edges' coefficients relative to `origin`, given the sine
+    /// and cosine of the ellipse's angle.
+    fn coefficients(&self, turn: (f64, f64), origin: [f64; 2]) -> Option<[[f64; 6]; 2]> {
+        let outer = ellipse_coefficients(&self.ellipse, turn, origin);
+        let pole = [self.pole[0] - origin[0], self.pole[1] - origin[1]];
+        let inner = concentric_coefficients(&outer, pole, self.band_fraction)?;
+        Some([outer, inner])
     }
 
-    /// The edges with parameter `index` moved by `step` px.
-    fn nudged(&self, index: usize, step: f64) -> Option<Edges> {
-        let mut moved = *self;
-        let e = &mut moved.ellipse;
-        match index {
-            0 => e.centre_px[0] += step,
-            1 => e.centre_px[1] += step,
-            2 => e.semi_axes_px[0] += step,
-            3 => e.semi_axes_px[1] += step,
-            4 => e.angle_rad += step / self.radius(),
-            _ => moved.band_fraction += step / self.radius(),
+    /// The two edges relative to `origin`, with their coefficients'
+    /// derivatives along the parameters (forward differences in `f64`, once
+    /// an iteration: the pencil that places the inner edge has no
+    /// closed-form derivative worth its code).
+    fn edges(&self, turn: (f64, f64), origin: [f64; 2]) -> Option<(EdgeConic, EdgeConic)> {
+        let r = self.radius();
+        let [outer, inner] = self.coefficients(turn, origin)?;
+        let mut chains = [SMatrix::<f64, 6, PARAMETERS>::zeros(); 2];
+        for j in 0..PARAMETERS {
+            let mut moved = *self;
+            let mut moved_turn = turn;
+            match j {
+                0 => moved.ellipse.centre_px[0] += STEP_PX,
+                1 => moved.ellipse.centre_px[1] += STEP_PX,
+                2 => moved.ellipse.semi_axes_px[0] += STEP_PX,
+                3 => moved.ellipse.semi_axes_px[1] += STEP_PX,
+                4 => {
+                    moved.ellipse.angle_rad += STEP_PX / r;
+                    moved_turn = libm::sincos(moved.ellipse.angle_rad);
+                }
+                _ => moved.band_fraction += STEP_PX / r,
+            }
+            let now = moved.coefficients(moved_turn, origin)?;
+            for ((chain, after), before) in chains.iter_mut().zip(&now).zip([&outer, &inner]) {
+                for (k, (a, b)) in after.iter().zip(before).enumerate() {
+                    if let Some(slot) = chain.get_mut((k, j)) {
+                        *slot = (a - b) / STEP_PX;
+                    }
+                }
+            }
         }
-        moved.edges()
+        let [outer_chain, inner_chain] = chains;
+        Some((
+            EdgeConic::new(outer, outer_chain)?,
+            EdgeConic::new(inner, inner_chain)?,
+        ))
     }
 
     fn stepped(&self, step: &Gradient) -> Self {
@@ -191,99 +195,72 @@ impl Geometry {
     }
 }
 
-/// A pixel's view of the model: its sector, the three levels' weights and
-/// their derivatives along the parameters.
-struct Modelled {
-    /// Whether the pixel is on an edge's ramp (its Jacobian is not zero).
-    on_ramp: bool,
-    basis: Vector3<f64>,
-    jacobian: SMatrix<f64, 3, PARAMETERS>,
-}
-
-fn ramp(d: f64, width: f64) -> (f64, f64) {
-    let a = 0.5 - d / width;
-    if a <= 0.0 {
-        (0.0, 0.0)
-    } else if a >= 1.0 {
-        (1.0, 0.0)
+/// The pixel's model: from its zone where the zones hold, else placed
+/// against the edges.
+#[inline]
+fn model_of(
+    pixel: &PassPixel,
+    outer: &EdgeConic,
+    inner: &EdgeConic,
+    width: f32,
+) -> Option<PixelModel> {
+    if pixel.zone < ZONE_NEAR {
+        Some(PixelModel::in_zone(pixel.zone))
     } else {
-        (a, -1.0 / width)
+        PixelModel::at(outer, inner, pixel.x, pixel.y, width)
     }
 }
 
-fn sector_of(phase_rad: f64) -> usize {
-    let turn = (phase_rad + core::f64::consts::PI) / core::f64::consts::TAU;
-    ((turn * RIM_SECTORS as f64) as usize).min(RIM_SECTORS - 1)
-}
-
-/// The basis `(floor, band, surface)` of a pixel at `p`: the shares of it
-/// each covers, `(1 - a_o, a_o (1 - a_i), a_o a_i)`, and, given the
-/// `nudged` edges, its derivatives by finite differences.
-fn model(
-    edges: &Edges,
-    nudged: Option<&[Edges; PARAMETERS]>,
-    p: [f64; 2],
+/// Works out the pixels' zones again unless the edges moved less than
+/// [`ZONE_MARGIN_PX`] from where they were last worked out, for ramps no
+/// wider.
+fn keep_zones(
+    pixels: &mut RimPixels,
+    geometry: &Geometry,
+    turn: (f64, f64),
+    edges: &(EdgeConic, EdgeConic),
     width: f64,
-) -> Option<Modelled> {
-    let d_outer = edges.outer.distance_px(p)?;
-    let d_inner = edges.inner.distance_px(p)?;
-    let (a_o, slope_o) = ramp(d_outer, width);
-    let (a_i, slope_i) = ramp(d_inner, width);
-    let basis = Vector3::new(1.0 - a_o, a_o * (1.0 - a_i), a_o * a_i);
-    let mut jacobian = SMatrix::<f64, 3, PARAMETERS>::zeros();
-    if let (Some(nudged), true) = (nudged, slope_o != 0.0 || slope_i != 0.0) {
-        for (j, moved) in nudged.iter().enumerate() {
-            let dd_o = (moved.outer.distance_px(p)? - d_outer) / STEP_PX;
-            let dd_i = (moved.inner.distance_px(p)? - d_inner) / STEP_PX;
-            let (da_o, da_i) = (slope_o * dd_o, slope_i * dd_i);
-            jacobian.set_column(
-                j,
-                &Vector3::new(
-                    -da_o,
-                    da_o * (1.0 - a_i) - a_o * da_i,
-                    da_o * a_i + a_o * da_i,
-                ),
-            );
+) {
+    let band_px = geometry.band_fraction * geometry.radius();
+    if let Some(c) = pixels.classified() {
+        let moved = largest_move(&c.ellipse, c.turn, &geometry.ellipse.locator())
+            + (c.band_px - band_px).abs();
+        if width <= c.width_px && moved < 0.5 * ZONE_MARGIN_PX {
+            return;
         }
     }
-    Some(Modelled {
-        on_ramp: slope_o != 0.0 || slope_i != 0.0,
-        basis,
-        jacobian,
-    })
+    let (outer, inner) = edges;
+    let half = (0.5 * width + ZONE_MARGIN_PX) as f32;
+    pixels.classify(
+        Classified {
+            ellipse: geometry.ellipse,
+            turn,
+            band_px,
+            width_px: width,
+        },
+        |x, y| PixelModel::zone_at(outer, inner, x, y, half, ZONE_NEAR),
+    );
 }
 
 /// Each sector's levels `(floor, band, surface)`, or `None` where the sector
 /// does not show all three or the band lacks contrast.
 fn sector_levels(
-    pixels: &[RimPixel],
-    geometry: &Geometry,
-    width: f64,
+    pixels: &RimPixels,
+    outer: &EdgeConic,
+    inner: &EdgeConic,
+    width: f32,
     min_contrast: f64,
-) -> [Option<Vector3<f64>>; RIM_SECTORS] {
-    let mut normal = [Matrix3::<f64>::zeros(); RIM_SECTORS];
-    let mut right = [Vector3::<f64>::zeros(); RIM_SECTORS];
-    let Some(edges) = geometry.edges() else {
-        return [None; RIM_SECTORS];
-    };
-    for pixel in pixels.iter().filter(|p| p.weight > 0.0) {
-        let Some(m) = model(
-            &edges,
-            None,
-            [f64::from(pixel.x), f64::from(pixel.y)],
-            width,
-        ) else {
+) -> [Option<Vector3<f32>>; RIM_SECTORS] {
+    let mut normal = [Matrix3::<f32>::zeros(); RIM_SECTORS];
+    let mut right = [Vector3::<f32>::zeros(); RIM_SECTORS];
+    for pixel in pixels.pass().filter(|p| p.weight > 0.0) {
+        let Some(m) = model_of(&pixel, outer, inner, width) else {
             continue;
         };
-        let w = f64::from(pixel.weight);
-        let sector = sector_of(
-            edges
-                .outer
-                .phase_rad([f64::from(pixel.x), f64::from(pixel.y)]),
-        );
-        if let (Some(n), Some(r)) = (normal.get_mut(sector), right.get_mut(sector)) {
-            *n += m.basis * m.basis.transpose() * w;
-            *r += m.basis * (w * f64::from(pixel.value));
+        if let (Some(n), Some(r)) = (normal.get_mut(pixel.sector), right.get_mut(pixel.sector)) {
+            let wb = m.basis * pixel.weight;
+            *n += wb * m.basis.transpose();
+            *r += wb * pixel.value;
         }
     }
     let mut levels = [None; RIM_SECTORS];
@@ -292,41 +269,18 @@ fn sector_levels(
         if n.diagonal().iter().any(|&d| d < 1.0) {
             continue;
         }
-        *level = n
-            .cholesky()
-            .map(|c| c.solve(r))
-            .filter(|l| l.iter().all(|v| v.is_finite()) && (l[0] - l[1]).abs() >= min_contrast);
+        *level = n.cholesky().map(|c| c.solve(r)).filter(|l| {
+            l.iter().all(|v| v.is_finite()) && f64::from((l[0] - l[1]).abs()) >= min_contrast
+        });
     }
     levels
-}
-
-fn add_to_histogram(histogram: &mut [u32; HISTOGRAM_BINS], counted: &mut u32, residual: f64) {
-    let bin = ((residual.abs() / 0.25) as usize).min(HISTOGRAM_BINS - 1);
-    if let Some(slot) = histogram.get_mut(bin) {
-        *slot += 1;
-        *counted += 1;
-    }
-}
-
-/// Robust scale of the residuals: the median absolute residual over 0.6745.
-fn robust_scale(histogram: &[u32; HISTOGRAM_BINS], count: u32) -> f64 {
-    let half = count / 2;
-    let mut seen = 0;
-    for (bin, &n) in histogram.iter().enumerate() {
-        if seen + n > half && n > 0 {
-            let within = f64::from(half - seen) / f64::from(n);
-            return ((bin as f64 + within) * 0.25 / 0.6745).max(MIN_SCALE_GREY);
-        }
-        seen += n;
-    }
-    HISTOGRAM_BINS as f64 * 0.25
 }
 
 /// Finds the rim frame after frame, in fixed memory.
 #[derive(Debug, Clone)]
 pub struct RimFinder {
     settings: RimSettings,
-    pixels: Vec<RimPixel, MAX_RIM_PIXELS>,
+    pixels: RimPixels,
 }
 
 impl RimFinder {
@@ -338,7 +292,7 @@ impl RimFinder {
     pub fn new(settings: RimSettings) -> Self {
         Self {
             settings,
-            pixels: Vec::new(),
+            pixels: RimPixels::default(),
         }
     }
 
@@ -370,12 +324,15 @@ impl RimFinder {
             band_fraction: 1.6 / r,
             pole,
         };
-        self.refine(image, lens, marks, start, &RAMP_SCHEDULE)
+        self.pixels.forget();
+        self.refine(image, lens, marks, start, (&RAMP_SCHEDULE, f64::INFINITY))
     }
 
-    /// Measures the rim in `image` from an ellipse known within a pixel or
-    /// two (the last frame's), with the disc centre's image `centre_px`
-    /// (distorted) where the detector found it this frame.
+    /// Measures the rim in `image` from an ellipse known within a fraction
+    /// of a pixel (the last frame's), with the disc centre's image
+    /// `centre_px` (distorted) where the detector found it this frame. A
+    /// rim that moved farther gives [`RimError::Diverged`]: start again
+    /// with [`Self::find_from_centre`].
     pub fn find_near(
         &mut self,
         image: &GrayImage<'_>,
@@ -392,134 +349,59 @@ impl RimFinder {
             band_fraction: last.band_fraction,
             pole,
         };
-        // Within a fraction of a pixel: the pixel's own ramp at once but
-        // for one step.
-        self.refine(image, lens, marks, start, &NEAR_SCHEDULE)
+        self.refine(image, lens, marks, start, (&NEAR_SCHEDULE, NEAR_TRUST_PX))
     }
 
-    /// Takes the pixels within reach of the start's band.
-    fn gather(
+    /// One pass over the pixels at the edges: the residuals' histogram,
+    /// and with `cutoff` the robust weights and the sums.
+    fn pass(
         &mut self,
-        image: &GrayImage<'_>,
-        lens: &LensModel,
-        marks: &[Blob],
-        start: &Geometry,
-    ) -> Result<(), RimError> {
-        self.pixels.clear();
-        let s = &self.settings;
-        let r = start.radius();
-        let reach_out = 1.0 + s.outer_reach_px / r;
-        // The box the outer reach's distorted image spans.
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        let outer = Ellipse {
-            semi_axes_px: start.ellipse.semi_axes_px.map(|a| a * reach_out),
-            ..start.ellipse
+        edges: &(EdgeConic, EdgeConic),
+        levels: &[Option<Vector3<f32>>; RIM_SECTORS],
+        width: f32,
+        cutoff: Option<f32>,
+    ) -> PassSums {
+        let (outer, inner) = edges;
+        let mut sums = PassSums::default();
+        let Some(cutoff) = cutoff else {
+            for pixel in self.pixels.pass() {
+                let Some(m) = model_of(&pixel, outer, inner, width) else {
+                    continue;
+                };
+                if let Some(level) = levels.get(pixel.sector).copied().flatten() {
+                    sums.count_residual(pixel.value - level.dot(&m.basis));
+                }
+            }
+            return sums;
         };
-        for k in 0..64 {
-            let p = lens.distort(outer.point_at(core::f64::consts::TAU * k as f64 / 64.0));
-            for axis in 0..2 {
-                if let (Some(l), Some(h), Some(&v)) =
-                    (lo.get_mut(axis), hi.get_mut(axis), p.get(axis))
-                {
-                    *l = l.min(v);
-                    *h = h.max(v);
+        self.pixels.reweigh(|pixel| {
+            let (Some(m), Some(level)) = (
+                model_of(&pixel, outer, inner, width),
+                levels.get(pixel.sector).copied().flatten(),
+            ) else {
+                // A sector without levels this time: its pixels are looked
+                // at again when its levels are next solved.
+                return Some(1.0);
+            };
+            let residual = pixel.value - level.dot(&m.basis);
+            sums.count_residual(residual);
+            let u = residual / cutoff;
+            if u.abs() >= 1.0 {
+                return Some(0.0);
+            }
+            let w = (1.0 - u * u) * (1.0 - u * u);
+            match m.zone() {
+                // Off both ramps a pixel's row is zero: it only tells its
+                // zone's level (most pixels).
+                Some(zone) => sums.add_level_only(pixel.sector, zone, w, residual),
+                None => {
+                    let row = m.row(outer, inner, &level, pixel.x, pixel.y);
+                    sums.add(pixel.sector, &m.basis, &row, w, residual);
                 }
             }
-        }
-        let clamp = |v: f64, size: usize| (v.max(0.0) as usize).min(size.saturating_sub(1));
-        let (x0, x1) = (
-            clamp(lo[0] - 2.0, image.width()),
-            clamp(hi[0] + 2.0, image.width()),
-        );
-        let (y0, y1) = (
-            clamp(lo[1] - 2.0, image.height()),
-            clamp(hi[1] + 2.0, image.height()),
-        );
-        let locator = start.ellipse.locator();
-        let band_px = r * start.band_fraction;
-        let (inner_reach, outer_reach) = (s.inner_reach_px, s.outer_reach_px);
-        let _ = band_px;
-        // The lens moves the rim's pixels by at most this: a pixel farther
-        // than the reaches and this from the start (taken at its distorted
-        // place) is not looked at closer.
-        let lens_shift = (0..32).fold(0.0f64, |m, k| {
-            let p = start
-                .ellipse
-                .point_at(core::f64::consts::TAU * f64::from(k) / 32.0);
-            let d = lens.distort(p);
-            m.max(libm::hypot(d[0] - p[0], d[1] - p[1]))
-        }) + 1.0;
-        // The marks near the ring: the only ones a pixel must be checked against.
-        let mut near: Vec<Blob, MAX_BLOBS> = Vec::new();
-        for mark in marks {
-            let reach = f64::from(mark.semi_major_px) + s.mark_margin_px + lens_shift;
-            let at = [f64::from(mark.x_px), f64::from(mark.y_px)];
-            if locator
-                .distance_px(at)
-                .is_some_and(|d| d <= outer_reach + reach && d >= -(inner_reach + reach))
-            {
-                // More marks than the detector gives cannot come.
-                let _ = near.push(*mark);
-            }
-        }
-        let (width, height) = (image.width(), image.height());
-        let mut stride = 1usize;
-        loop {
-            self.pixels.clear();
-            let mut index = 0usize;
-            let mut overflow = false;
-            'rows: for v in y0.max(1)..=y1.min(height.saturating_sub(2)) {
-                let row = image.row(v);
-                // The image's border row and column are not trusted.
-                for u in x0.max(1)..=x1.min(width.saturating_sub(2)) {
-                    let Some(&value) = row.get(u) else { continue };
-                    let (uf, vf) = (u as f64, v as f64);
-                    let rough = locator.distance_px([uf, vf]);
-                    if !rough.is_some_and(|d| {
-                        d <= outer_reach + lens_shift && d >= -(inner_reach + lens_shift)
-                    }) {
-                        continue;
-                    }
-                    if near_a_mark(&near, uf, vf, s.mark_margin_px) {
-                        continue;
-                    }
-                    let Some(p) = lens.undistort([uf, vf]) else {
-                        continue;
-                    };
-                    if !locator
-                        .distance_px(p)
-                        .is_some_and(|d| d <= outer_reach && d >= -inner_reach)
-                    {
-                        continue;
-                    }
-                    index += 1;
-                    if !(index - 1).is_multiple_of(stride) {
-                        continue;
-                    }
-                    let pixel = RimPixel {
-                        x: p[0] as f32,
-                        y: p[1] as f32,
-                        value: f32::from(value),
-                        weight: 1.0,
-                    };
-                    if self.pixels.push(pixel).is_err() {
-                        overflow = true;
-                        break 'rows;
-                    }
-                }
-            }
-            if !overflow {
-                break;
-            }
-            stride *= 2;
-        }
-        if self.pixels.len() < s.min_pixels {
-            return Err(RimError::TooFewPixels {
-                found: self.pixels.len(),
-                needed: s.min_pixels,
-            });
-        }
-        Ok(())
+            Some(w)
+        });
+        sums
     }
 
     fn refine(
@@ -528,19 +410,42 @@ impl RimFinder {
         lens: &LensModel,
         marks: &[Blob],
         start: Geometry,
-        schedule: &[f64],
+        (schedule, trust_px): (&[f64], f64),
     ) -> Result<RimFit, RimError> {
-        self.gather(image, lens, marks, &start)?;
         let settings = self.settings;
+        self.pixels.gather(
+            image,
+            lens,
+            &start.ellipse,
+            start.band_fraction * start.radius(),
+            (settings.inner_reach_px, settings.outer_reach_px),
+        );
+        let found = self.pixels.load(image, marks, settings.mark_margin_px);
+        if found < settings.min_pixels {
+            return Err(RimError::TooFewPixels {
+                found,
+                needed: settings.min_pixels,
+            });
+        }
+        let origin = self.pixels.origin_px();
         let mut geometry = start;
         let mut last: Option<(Normal, f64, usize, usize, f64)> = None;
         let mut iterations = 0;
         let mut scale: Option<f64> = None;
         let mut last_step_px = f64::INFINITY;
+        // The levels at the start; each step below moves them with the
+        // edges (the joint Gauss-Newton step, with the levels eliminated).
+        let mut levels = {
+            let width = schedule.first().copied().unwrap_or(1.0) as f32;
+            let turn = libm::sincos(geometry.ellipse.angle_rad);
+            let edges = geometry.edges(turn, origin).ok_or(RimError::Degenerate)?;
+            keep_zones(&mut self.pixels, &geometry, turn, &edges, f64::from(width));
+            let (outer, inner) = edges;
+            sector_levels(&self.pixels, &outer, &inner, width, settings.min_contrast)
+        };
         for iteration in 0..settings.max_iterations {
             iterations = iteration + 1;
             let width = schedule.get(iteration).copied().unwrap_or(1.0);
-            let levels = sector_levels(&self.pixels, &geometry, width, settings.min_contrast);
             let sectors = levels.iter().filter(|l| l.is_some()).count();
             if sectors < settings.min_sectors {
                 return Err(RimError::TooFewSectors {
@@ -548,96 +453,21 @@ impl RimFinder {
                     needed: settings.min_sectors,
                 });
             }
-            let edges = geometry.edges().ok_or(RimError::Degenerate)?;
-            let mut nudged = [edges; PARAMETERS];
-            for (j, slot) in nudged.iter_mut().enumerate() {
-                *slot = geometry.nudged(j, STEP_PX).ok_or(RimError::Degenerate)?;
-            }
-            let at = |pixel: &RimPixel, nudged: Option<&[Edges; PARAMETERS]>| {
-                let m = model(
-                    &edges,
-                    nudged,
-                    [f64::from(pixel.x), f64::from(pixel.y)],
-                    width,
-                )?;
-                let sector = sector_of(
-                    edges
-                        .outer
-                        .phase_rad([f64::from(pixel.x), f64::from(pixel.y)]),
-                );
-                let level = levels.get(sector).copied().flatten()?;
-                Some((
-                    f64::from(pixel.value) - level.dot(&m.basis),
-                    level,
-                    m,
-                    sector,
-                ))
-            };
+            let turn = libm::sincos(geometry.ellipse.angle_rad);
+            let edges = geometry.edges(turn, origin).ok_or(RimError::Degenerate)?;
+            keep_zones(&mut self.pixels, &geometry, turn, &edges, width);
             // The residuals' scale: the last pass's, or a pass of its own
             // the first time.
             let sigma = match scale {
                 Some(sigma) => sigma,
                 None => {
-                    let mut histogram = [0u32; HISTOGRAM_BINS];
-                    let mut counted = 0u32;
-                    for (residual, _, _, _) in self.pixels.iter().filter_map(|p| at(p, None)) {
-                        add_to_histogram(&mut histogram, &mut counted, residual);
-                    }
-                    robust_scale(&histogram, counted)
+                    let sums = self.pass(&edges, &levels, width as f32, None);
+                    sums.robust_scale()
                 }
             };
-            let cutoff = TUKEY * sigma;
-            let mut normal = Normal::zeros();
-            let mut gradient = Gradient::zeros();
-            // The levels' blocks, per sector: the step below eliminates them
-            // (variable projection: a step that ignored how the levels
-            // follow the edges crept to the optimum a little each iteration).
-            let mut level_normal = [Matrix3::<f64>::zeros(); RIM_SECTORS];
-            let mut cross = [SMatrix::<f64, PARAMETERS, 3>::zeros(); RIM_SECTORS];
-            let mut level_gradient = [Vector3::<f64>::zeros(); RIM_SECTORS];
-            let mut used = 0usize;
-            let mut histogram = [0u32; HISTOGRAM_BINS];
-            let mut counted = 0u32;
-            for pixel in self.pixels.iter_mut() {
-                let Some((residual, level, m, sector)) = at(pixel, Some(&nudged)) else {
-                    // A sector without levels this time: its pixels are
-                    // looked at again when its levels are next solved.
-                    pixel.weight = 1.0;
-                    continue;
-                };
-                add_to_histogram(&mut histogram, &mut counted, residual);
-                let u = residual / cutoff;
-                if u.abs() >= 1.0 {
-                    pixel.weight = 0.0;
-                    continue;
-                }
-                let w = (1.0 - u * u) * (1.0 - u * u);
-                pixel.weight = w as f32;
-                used += 1;
-                if let (Some(v), Some(g)) =
-                    (level_normal.get_mut(sector), level_gradient.get_mut(sector))
-                {
-                    *v += m.basis * m.basis.transpose() * w;
-                    *g += m.basis * (w * residual);
-                }
-                // Off both ramps a pixel's row is zero: it adds nothing to
-                // the edges' blocks (most pixels; the sums are the same).
-                if m.on_ramp {
-                    let row = level.transpose() * m.jacobian;
-                    normal += row.transpose() * row * w;
-                    gradient += row.transpose() * (w * residual);
-                    if let Some(c) = cross.get_mut(sector) {
-                        *c += row.transpose() * m.basis.transpose() * w;
-                    }
-                }
-            }
-            for ((v, c), g) in level_normal.iter().zip(&cross).zip(&level_gradient) {
-                if let Some(f) = v.cholesky() {
-                    normal -= c * f.solve(&c.transpose());
-                    gradient -= c * f.solve(g);
-                }
-            }
-            scale = Some(robust_scale(&histogram, counted));
+            let sums = self.pass(&edges, &levels, width as f32, Some((TUKEY * sigma) as f32));
+            let (normal, gradient) = sums.reduced();
+            scale = Some(sums.robust_scale());
             let contrast = median_contrast(&levels);
             // A light damping keeps a step across a flat ramp finite.
             let mut damped = normal;
@@ -651,7 +481,14 @@ impl RimFinder {
                 .map(|c| c.solve(&gradient))
                 .filter(|s| s.iter().all(|v| v.is_finite()))
                 .ok_or(RimError::Degenerate)?;
-            last = Some((normal, scale.unwrap_or(sigma), used, sectors, contrast));
+            last = Some((
+                normal,
+                scale.unwrap_or(sigma),
+                sums.used(),
+                sectors,
+                contrast,
+            ));
+            sums.step_levels(&mut levels, &step, settings.min_contrast);
             let before = geometry;
             geometry = geometry.stepped(&step);
 
@@ -666,15 +503,12 @@ impl RimFinder {
             }
             // How far the edges moved (an angle step of a near-circle moves
             // nothing), and the band's width.
-            let locator = geometry.ellipse.locator();
-            let moved_edge = (0..16).fold(0.0f64, |m, k| {
-                let p = before
-                    .ellipse
-                    .point_at(core::f64::consts::TAU * f64::from(k) / 16.0);
-                m.max(locator.distance_px(p).map_or(f64::INFINITY, f64::abs))
-            });
+            let moved_edge = largest_move(&before.ellipse, turn, &geometry.ellipse.locator());
             let largest = moved_edge.max(step.get(5).map_or(0.0, |s| s.abs()));
             last_step_px = largest;
+            if iteration == 0 && largest > trust_px {
+                return Err(RimError::Diverged);
+            }
             if width <= 1.0 && largest < CONVERGED_PX {
                 break;
             }
@@ -712,12 +546,50 @@ impl RimFinder {
     }
 }
 
+/// `cos` and `sin` of `k pi / 8`, the phases [`largest_move`] looks at.
+const OUTLINE: [(f64, f64); 16] = {
+    const C1: f64 = 0.923_879_532_511_286_7;
+    const C2: f64 = core::f64::consts::FRAC_1_SQRT_2;
+    const C3: f64 = 0.382_683_432_365_089_8;
+    [
+        (1.0, 0.0),
+        (C1, C3),
+        (C2, C2),
+        (C3, C1),
+        (0.0, 1.0),
+        (-C3, C1),
+        (-C2, C2),
+        (-C1, C3),
+        (-1.0, 0.0),
+        (-C1, -C3),
+        (-C2, -C2),
+        (-C3, -C1),
+        (0.0, -1.0),
+        (C3, -C1),
+        (C2, -C2),
+        (C1, -C3),
+    ]
+};
+
+/// The farthest a point of `before` (whose angle's sine and cosine are
+/// `turn`) lies from the ellipse `after` places, over 16 points round it,
+/// px.
+fn largest_move(before: &Ellipse, (sin, cos): (f64, f64), after: &Locator) -> f64 {
+    let [a, b] = before.semi_axes_px;
+    let [cx, cy] = before.centre_px;
+    OUTLINE.iter().fold(0.0f64, |m, &(cp, sp)| {
+        let (x, y) = (a * cp, b * sp);
+        let p = [cx + cos * x - sin * y, cy + sin * x + cos * y];
+        m.max(after.distance_px(p).map_or(f64::INFINITY, f64::abs))
+    })
+}
+
 /// Median of the sectors' `|floor - band|`.
-fn median_contrast(levels: &[Option<Vector3<f64>>; RIM_SECTORS]) -> f64 {
+fn median_contrast(levels: &[Option<Vector3<f32>>; RIM_SECTORS]) -> f64 {
     let mut contrasts = [0.0f64; RIM_SECTORS];
     let mut count = 0;
     for (slot, level) in contrasts.iter_mut().zip(levels.iter().flatten()) {
-        *slot = (level[0] - level[1]).abs();
+        *slot = f64::from((level[0] - level[1]).abs());
         count += 1;
     }
     let used = contrasts.get_mut(..count).unwrap_or(&mut []);

@@ -14,17 +14,28 @@
 //! - [`fit`]: every pixel within a few pixels of the band is explained by a
 //!   model of the band (the floor, the band, the disc's surface, each level
 //!   free in each of [`fit::RIM_SECTORS`] sectors round the rim, meeting at
-//!   the outer ellipse and at the same ellipse scaled inwards, each edge a
+//!   the outer ellipse and at the image of a concentric circle, each edge a
 //!   one-pixel ramp: the area a pixel integrates), and Gauss-Newton moves
 //!   the ellipse until the model explains the pixels, with a robust weight
 //!   that lets the arm, a glint or a mark the detector missed drop out.
+//!   Later frames start from the last frame's fit.
+//!
+//! Its parts: [`pixels`] (the pixels near the band, found once: the camera
+//! does not move), [`model`] (one pixel against the two edges, `f32` with
+//! analytic derivatives), [`sums`] (a pass's normal equations, the levels
+//! eliminated sector by sector).
 //!
 //! Working memory: [`RimFinder::WORKING_MEMORY_BYTES`] (the pixels near the
-//! band, [`fit::MAX_RIM_PIXELS`] of them at most, and the sectors' sums).
+//! band, [`fit::MAX_RIM_PIXELS`] of them at most, 16 B each with their
+//! sector, value, weight and zone); a pass's sums (about 5 KiB) live on the
+//! stack.
 
 pub mod ellipse;
 pub mod fit;
+pub mod model;
+pub mod pixels;
 pub mod seed;
+pub mod sums;
 
 use core::fmt;
 

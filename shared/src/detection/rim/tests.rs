@@ -270,3 +270,32 @@ fn the_marks_pixels_are_not_the_bands() {
         "bias {bias:.4} rms {rms:.4}"
     );
 }
+
+#[test]
+fn the_next_frame_starts_from_the_last_fit_and_a_moved_rim_is_refused() {
+    let scene = scene([0.1, -0.05, 2.8], [0.05, -0.08], 2.5);
+    let first = measure(&scene, 1).unwrap();
+    let pixels = render(&scene, 2);
+    let image = GrayImage::packed(SIZE, SIZE, &pixels).unwrap();
+    let mut finder = RimFinder::new(RimSettings::default());
+    // The next frame: a few steps from the last fit, and as good.
+    let next = finder.find_near(&image, &LENS, &[], &first, None).unwrap();
+    assert!(next.iterations <= 4, "{next:?}");
+    let (bias, rms) = score(&scene, &next);
+    assert!(
+        bias.abs() < 0.03 && rms < 0.05,
+        "bias {bias:.4} rms {rms:.4}"
+    );
+    // A rim a pixel away from the last fit (the camera knocked): an error,
+    // never a fit pulled part way.
+    let mut knocked = first;
+    knocked.ellipse.centre_px[0] += 1.0;
+    assert_eq!(
+        finder.find_near(&image, &LENS, &[], &knocked, None),
+        Err(RimError::Diverged)
+    );
+    // From the centre it is found again.
+    assert!(finder
+        .find_from_centre(&image, &LENS, &[], centre_px(&scene))
+        .is_ok());
+}

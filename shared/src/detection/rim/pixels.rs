@@ -1,0 +1,393 @@
+//! The pixels near the rim band, found once and read again frame after
+//! frame.
+//!
+//! The camera and the disc's plane do not move, so the band's pixels are the
+//! same in every frame: where they are (and where the lens's distortion
+//! moves them) is worked out when the fit starts from the disc centre and
+//! kept while the fit stays within a fraction of a pixel of that start.
+//! A frame only reads their values and masks those a mark covers (the
+//! marks turn with the disc).
+
+use heapless::Vec;
+
+use super::ellipse::{Ellipse, Locator};
+use super::seed::near_a_mark;
+use crate::detection::identify::lens::LensModel;
+use crate::detection::MAX_BLOBS;
+use crate::detection::{Blob, GrayImage};
+
+/// Sectors round the rim, each with its own three levels (light varies
+/// round the image; the disc's texture round the disc).
+pub const RIM_SECTORS: usize = 32;
+/// Most pixels the fit holds; more near the band are taken one in so many.
+pub const MAX_RIM_PIXELS: usize = 4096;
+/// A start farther than this from the one the pixels were found for finds
+/// them again, px.
+const REGATHER_PX: f64 = 0.3;
+/// A pixel's zone when it must be placed against the edges each pass.
+pub const ZONE_NEAR: u8 = 3;
+/// Points round the ellipse that bound the lens's shift and the box.
+const OUTLINE_POINTS: usize = 64;
+
+/// Where one pixel near the band is.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Site {
+    /// Image column and row.
+    u: u16,
+    v: u16,
+    /// Undistorted position relative to [`RimPixels::origin_px`], px.
+    pub x: f32,
+    /// The same, y.
+    pub y: f32,
+}
+
+/// The band a pixel's zone was worked out for: its outer edge, the sine
+/// and cosine of that edge's angle, the band's width and the ramps' width
+/// with the margin taken.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Classified {
+    /// The outer edge.
+    pub ellipse: Ellipse,
+    /// `sin` and `cos` of its angle.
+    pub turn: (f64, f64),
+    /// The band's width, px.
+    pub band_px: f64,
+    /// The ramps' width, px.
+    pub width_px: f64,
+}
+
+/// What the pixels were found for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Gathered {
+    ellipse: Ellipse,
+    band_px: f64,
+    lens: LensModel,
+    size: (usize, usize),
+    reach_px: (f64, f64),
+}
+
+/// The pixels near the band, their sectors and this frame's values, in
+/// fixed memory.
+#[derive(Debug, Clone)]
+pub struct RimPixels {
+    sites: Vec<Site, MAX_RIM_PIXELS>,
+    sectors: Vec<u8, MAX_RIM_PIXELS>,
+    values: Vec<u8, MAX_RIM_PIXELS>,
+    /// Each pixel's robust weight from the last pass, in 255ths; 0 for a
+    /// pixel the last pass dropped or a mark covers.
+    weights: Vec<u8, MAX_RIM_PIXELS>,
+    /// Each pixel's zone off the ramps (0 the floor, 1 the band, 2 the
+    /// disc's surface) while the edges stay near where they were when it
+    /// was worked out, else [`ZONE_NEAR`].
+    zones: Vec<u8, MAX_RIM_PIXELS>,
+    /// The band the zones were worked out for.
+    classified: Option<Classified>,
+    /// A bit per pixel: a mark covers it in this frame.
+    masked: [u32; MAX_RIM_PIXELS / 32],
+    origin_px: [f64; 2],
+    gathered: Option<Gathered>,
+}
+
+impl Default for RimPixels {
+    fn default() -> Self {
+        Self {
+            sites: Vec::new(),
+            sectors: Vec::new(),
+            values: Vec::new(),
+            weights: Vec::new(),
+            zones: Vec::new(),
+            classified: None,
+            masked: [0; MAX_RIM_PIXELS / 32],
+            origin_px: [0.0; 2],
+            gathered: None,
+        }
+    }
+}
+
+/// The sector of a phase round the ellipse.
+pub fn sector_of(phase_rad: f64) -> usize {
+    let turn = (phase_rad + core::f64::consts::PI) / core::f64::consts::TAU;
+    ((turn * RIM_SECTORS as f64) as usize).min(RIM_SECTORS - 1)
+}
+
+/// One pixel of a pass: where it is, its sector, value and last weight.
+#[derive(Debug, Clone, Copy)]
+pub struct PassPixel {
+    /// Relative to the origin, px.
+    pub x: f32,
+    /// Relative to the origin, px.
+    pub y: f32,
+    /// Its sector.
+    pub sector: usize,
+    /// Its grey level this frame.
+    pub value: f32,
+    /// Its robust weight from the last pass, 0 to 1.
+    pub weight: f32,
+    /// Its zone, or [`ZONE_NEAR`].
+    pub zone: u8,
+}
+
+impl RimPixels {
+    /// The point the sites are relative to, undistorted px.
+    pub fn origin_px(&self) -> [f64; 2] {
+        self.origin_px
+    }
+
+    /// Forgets where the pixels are, so that the next gather finds them
+    /// anew (a fit started from scratch trusts nothing kept).
+    pub fn forget(&mut self) {
+        self.gathered = None;
+    }
+
+    /// Finds the pixels within reach of a band whose outer edge is `ellipse`
+    /// and whose width is `band_px`, unless those found last are for a band
+    /// within a fraction of a pixel of it.
+    pub fn gather(
+        &mut self,
+        image: &GrayImage<'_>,
+        lens: &LensModel,
+        ellipse: &Ellipse,
+        band_px: f64,
+        reach_px: (f64, f64),
+    ) {
+        let wanted = Gathered {
+            ellipse: *ellipse,
+            band_px,
+            lens: *lens,
+            size: (image.width(), image.height()),
+            reach_px,
+        };
+        if self.gathered.is_some_and(|g| g.still_serves(&wanted)) {
+            return;
+        }
+        self.gathered = None;
+        self.classified = None;
+        self.sites.clear();
+        self.sectors.clear();
+        self.zones.clear();
+        self.origin_px = ellipse.centre_px;
+        let locator = ellipse.locator();
+        let (inner_reach, outer_reach) = reach_px;
+        let r = ellipse.mean_radius_px().max(1.0);
+        let outer = Ellipse {
+            semi_axes_px: ellipse.semi_axes_px.map(|a| a * (1.0 + outer_reach / r)),
+            ..*ellipse
+        };
+        // The box the outer reach's distorted image spans, and how far the
+        // lens moves the rim's pixels: a pixel farther than the reaches and
+        // that from the ellipse (taken at its distorted place) is not
+        // looked at closer.
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        let mut lens_shift = 0.0f64;
+        for k in 0..OUTLINE_POINTS {
+            let phase = core::f64::consts::TAU * k as f64 / OUTLINE_POINTS as f64;
+            let p = lens.distort(outer.point_at(phase));
+            lo = [lo[0].min(p[0]), lo[1].min(p[1])];
+            hi = [hi[0].max(p[0]), hi[1].max(p[1])];
+            let on = ellipse.point_at(phase);
+            let d = lens.distort(on);
+            lens_shift = lens_shift.max(libm::hypot(d[0] - on[0], d[1] - on[1]));
+        }
+        lens_shift += 1.0;
+        let (width, height) = (image.width(), image.height());
+        // The image's border row and column are not trusted.
+        let clamp = |v: f64, size: usize| (v.max(1.0) as usize).min(size.saturating_sub(2));
+        let (x0, x1) = (clamp(lo[0] - 2.0, width), clamp(hi[0] + 2.0, width));
+        let (y0, y1) = (clamp(lo[1] - 2.0, height), clamp(hi[1] + 2.0, height));
+        let mut stride = 1usize;
+        loop {
+            self.sites.clear();
+            self.sectors.clear();
+            self.zones.clear();
+            let mut index = 0usize;
+            let mut overflow = false;
+            'rows: for v in y0..=y1 {
+                for u in x0..=x1 {
+                    let (uf, vf) = (u as f64, v as f64);
+                    if !locator.distance_px([uf, vf]).is_some_and(|d| {
+                        d <= outer_reach + lens_shift && d >= -(inner_reach + lens_shift)
+                    }) {
+                        continue;
+                    }
+                    let Some(p) = lens.undistort([uf, vf]) else {
+                        continue;
+                    };
+                    if !locator
+                        .distance_px(p)
+                        .is_some_and(|d| d <= outer_reach && d >= -inner_reach)
+                    {
+                        continue;
+                    }
+                    index += 1;
+                    if !(index - 1).is_multiple_of(stride) {
+                        continue;
+                    }
+                    let site = Site {
+                        u: u as u16,
+                        v: v as u16,
+                        x: (p[0] - self.origin_px[0]) as f32,
+                        y: (p[1] - self.origin_px[1]) as f32,
+                    };
+                    let sector = sector_of(locator.phase_rad(p)) as u8;
+                    if self.sites.push(site).is_err()
+                        || self.sectors.push(sector).is_err()
+                        || self.zones.push(ZONE_NEAR).is_err()
+                    {
+                        overflow = true;
+                        break 'rows;
+                    }
+                }
+            }
+            if !overflow {
+                break;
+            }
+            stride *= 2;
+        }
+        self.gathered = Some(wanted);
+    }
+
+    /// Reads this frame's values, masks the pixels near `marks` and resets
+    /// the weights; gives the pixels left.
+    pub fn load(&mut self, image: &GrayImage<'_>, marks: &[Blob], mark_margin_px: f64) -> usize {
+        self.values.clear();
+        self.weights.clear();
+        self.masked = [0; MAX_RIM_PIXELS / 32];
+        // Only marks within reach of the pixels' box are checked.
+        let (mut lo, mut hi) = ([u16::MAX; 2], [0u16; 2]);
+        for site in &self.sites {
+            lo = [lo[0].min(site.u), lo[1].min(site.v)];
+            hi = [hi[0].max(site.u), hi[1].max(site.v)];
+        }
+        let mut near: Vec<Blob, MAX_BLOBS> = Vec::new();
+        for mark in marks {
+            let reach = f64::from(mark.semi_major_px) + mark_margin_px;
+            let (x, y) = (f64::from(mark.x_px), f64::from(mark.y_px));
+            if x + reach >= f64::from(lo[0])
+                && x - reach <= f64::from(hi[0])
+                && y + reach >= f64::from(lo[1])
+                && y - reach <= f64::from(hi[1])
+            {
+                // No more marks than the detector gives can come.
+                let _ = near.push(*mark);
+            }
+        }
+        let mut left = 0;
+        for (k, site) in self.sites.iter().enumerate() {
+            let (u, v) = (usize::from(site.u), usize::from(site.v));
+            let value = image.row(v).get(u).copied();
+            let covered = near_a_mark(&near, u as f64, v as f64, mark_margin_px);
+            let (value, weight) = match value {
+                Some(value) if !covered => {
+                    left += 1;
+                    (value, u8::MAX)
+                }
+                _ => {
+                    if let Some(word) = self.masked.get_mut(k / 32) {
+                        *word |= 1 << (k % 32);
+                    }
+                    (0, 0)
+                }
+            };
+            // The three vectors share the sites' capacity.
+            let _ = self.values.push(value);
+            let _ = self.weights.push(weight);
+        }
+        left
+    }
+
+    /// The pixels of this frame no mark covers, with their last weights.
+    pub fn pass(&self) -> impl Iterator<Item = PassPixel> + '_ {
+        self.sites
+            .iter()
+            .zip(self.sectors.iter().zip(&self.zones))
+            .zip(self.values.iter().zip(&self.weights))
+            .enumerate()
+            .filter(|(k, _)| !self.is_masked(*k))
+            .map(
+                |(_, ((site, (&sector, &zone)), (&value, &weight)))| PassPixel {
+                    x: site.x,
+                    y: site.y,
+                    sector: usize::from(sector),
+                    value: f32::from(value),
+                    weight: f32::from(weight) * (1.0 / 255.0),
+                    zone,
+                },
+            )
+    }
+
+    /// The same pass, where `visit` may give each pixel a new robust weight
+    /// for the next pass.
+    pub fn reweigh(&mut self, mut visit: impl FnMut(PassPixel) -> Option<f32>) {
+        let masked = self.masked;
+        let is_masked = |k: usize| {
+            masked
+                .get(k / 32)
+                .is_none_or(|word| word & (1 << (k % 32)) != 0)
+        };
+        for (k, ((site, (&sector, &zone)), (&value, weight))) in self
+            .sites
+            .iter()
+            .zip(self.sectors.iter().zip(&self.zones))
+            .zip(self.values.iter().zip(self.weights.iter_mut()))
+            .enumerate()
+        {
+            if is_masked(k) {
+                continue;
+            }
+            let pixel = PassPixel {
+                x: site.x,
+                y: site.y,
+                sector: usize::from(sector),
+                value: f32::from(value),
+                weight: f32::from(*weight) * (1.0 / 255.0),
+                zone,
+            };
+            if let Some(w) = visit(pixel) {
+                *weight = (w.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+            }
+        }
+    }
+
+    /// The band the zones were worked out for, if they were.
+    pub fn classified(&self) -> Option<&Classified> {
+        self.classified.as_ref()
+    }
+
+    /// Works out each pixel's zone by `zone_of` (given its position), for
+    /// the band `at`.
+    pub fn classify(&mut self, at: Classified, zone_of: impl Fn(f32, f32) -> u8) {
+        for (zone, site) in self.zones.iter_mut().zip(&self.sites) {
+            *zone = zone_of(site.x, site.y);
+        }
+        self.classified = Some(at);
+    }
+
+    fn is_masked(&self, k: usize) -> bool {
+        self.masked
+            .get(k / 32)
+            .is_none_or(|word| word & (1 << (k % 32)) != 0)
+    }
+}
+
+impl Gathered {
+    /// Whether the pixels found for `self` serve a band `wanted`: the same
+    /// lens, image and reaches, and edges within [`REGATHER_PX`].
+    fn still_serves(&self, wanted: &Self) -> bool {
+        if self.lens != wanted.lens
+            || self.size != wanted.size
+            || self.reach_px != wanted.reach_px
+            || (self.band_px - wanted.band_px).abs() > REGATHER_PX
+        {
+            return false;
+        }
+        let locator: Locator = self.ellipse.locator();
+        (0..16).all(|k| {
+            let p = wanted
+                .ellipse
+                .point_at(core::f64::consts::TAU * f64::from(k) / 16.0);
+            locator
+                .distance_px(p)
+                .is_some_and(|d| d.abs() <= REGATHER_PX)
+        })
+    }
+}
