@@ -401,9 +401,10 @@ fn detect_frame(timer: &timer::DualTimer) -> Option<()> {
 /// The disc's rim in one 256 x 256 frame (`shared::detection::rim`): a disc
 /// seen at a slant (an ellipse of 47 by 42 px), its surface at 60 grey, a
 /// dark band 1.6 px wide at its edge (24) and the floor (50), by 4 x 4
-/// sub-pixels, as the host's criterion bench draws it. The rim
-/// found from the disc centre (the first frame) and from the last frame's
-/// (every later one). `None` (the bench fails) when it is not found.
+/// sub-pixels, as the host's criterion bench draws it, with noise of about
+/// 2 grey levels. The rim found from the disc centre (the first frame) and
+/// from the last frame's fit in the next frame (its noise drawn again), as
+/// every later frame is. `None` (the bench fails) when it is not found.
 fn rim_frame(timer: &timer::DualTimer) -> Option<()> {
     use shared::detection::identify::lens::LensModel;
     use shared::detection::rim::{RimFinder, RimSettings};
@@ -437,18 +438,27 @@ fn rim_frame(timer: &timer::DualTimer) -> Option<()> {
         let light = 1.0 + 0.1 * (x - 128.0) / 128.0;
         *pixel = (light * sum / 16.0) as u8;
     }
+    add_noise(&mut pixels, 0x9e37_79b9, 3);
+    let mut finder = RimFinder::new(RimSettings::default());
+    let centre = [f64::from(cx), f64::from(cy)];
+    let first = {
+        let Ok(image) = GrayImage::packed(SIDE, SIDE, &pixels) else {
+            hprintln!("  rim: frame refused");
+            return None;
+        };
+        match finder.find_from_centre(&image, &LENS, &[], centre) {
+            Ok(fit) => fit,
+            Err(error) => {
+                hprintln!("  rim: not found ({:?})", error);
+                return None;
+            }
+        }
+    };
+    // The next frame: the noise drawn again on top.
+    add_noise(&mut pixels, 0x85eb_ca6b, 2);
     let Ok(image) = GrayImage::packed(SIDE, SIDE, &pixels) else {
         hprintln!("  rim: frame refused");
         return None;
-    };
-    let mut finder = RimFinder::new(RimSettings::default());
-    let centre = [f64::from(cx), f64::from(cy)];
-    let first = match finder.find_from_centre(&image, &LENS, &[], centre) {
-        Ok(fit) => fit,
-        Err(error) => {
-            hprintln!("  rim: not found ({:?})", error);
-            return None;
-        }
     };
     let cold = timer.measure(1, || {
         black_box(
@@ -457,22 +467,39 @@ fn rim_frame(timer: &timer::DualTimer) -> Option<()> {
                 .is_ok(),
         )
     });
+    let mut next_iterations = 0;
     let near = timer.measure(1, || {
-        black_box(
-            finder
-                .find_near(black_box(&image), &LENS, &[], &first, None)
-                .is_ok(),
-        )
+        next_iterations = finder
+            .find_near(black_box(&image), &LENS, &[], &first, None)
+            .map_or(0, |fit| fit.iterations);
     });
+    if next_iterations == 0 {
+        hprintln!("  rim: not found in the next frame");
+        return None;
+    }
     hprintln!(
-        "  rim from the centre / from the last frame {:>9} / {:>9}   ({} px, {} iterations; {} B working memory)",
+        "  rim from the centre / from the last frame {:>9} / {:>9}   ({} px, {} / {} iterations; {} B working memory)",
         cold,
         near,
         first.pixels,
         first.iterations,
+        next_iterations,
         RimFinder::WORKING_MEMORY_BYTES
     );
     Some(())
+}
+
+/// Adds uniform noise of `-amplitude..=amplitude` grey levels (xorshift
+/// from `seed`), clamped to the 8 bits.
+fn add_noise(pixels: &mut [u8], seed: u32, amplitude: i32) {
+    let mut state = seed.max(1);
+    for pixel in pixels.iter_mut() {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        let draw = (state % (2 * amplitude as u32 + 1)) as i32 - amplitude;
+        *pixel = (i32::from(*pixel) + draw).clamp(0, 255) as u8;
+    }
 }
 
 /// What the drive interlock adds to every control period: the encoder

@@ -16,8 +16,10 @@ const LENS: LensModel = LensModel {
 
 /// A disc of radius 47 px seen at a slant (an ellipse of 47 by 42 px): its
 /// surface at 60 grey, a dark band 1.6 px wide at its edge (24 grey) and
-/// the floor (50 grey), by 4 x 4 sub-pixels, with a little light gradient.
-fn frame() -> std::vec::Vec<u8> {
+/// the floor (50 grey), by 4 x 4 sub-pixels, with a little light gradient
+/// and uniform noise of about 2 grey levels drawn from `seed`.
+fn frame(seed: u32) -> std::vec::Vec<u8> {
+    let mut state = seed.max(1);
     let mut pixels = vec![0u8; 256 * 256];
     let (cx, cy, a, b) = (131.0f32, 124.0f32, 47.0f32, 42.0f32);
     for y in 0..256usize {
@@ -38,23 +40,29 @@ fn frame() -> std::vec::Vec<u8> {
                 }
             }
             let light = 1.0 + 0.1 * (x as f32 - 128.0) / 128.0;
-            pixels[y * 256 + x] = (light * sum / 16.0).clamp(0.0, 255.0) as u8;
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            let noise = (state % 7) as f32 - 3.0;
+            pixels[y * 256 + x] = (light * sum / 16.0 + noise).clamp(0.0, 255.0) as u8;
         }
     }
     pixels
 }
 
 fn bench(c: &mut Criterion) {
-    let pixels = frame();
-    let image = match GrayImage::packed(256, 256, &pixels) {
+    let (first_pixels, pixels) = (frame(0x9e37_79b9), frame(0x85eb_ca6b));
+    let packed = |pixels| match GrayImage::packed(256, 256, pixels) {
         Ok(image) => image,
         Err(error) => panic!("bench frame: {error}"),
     };
     let mut finder = Box::new(RimFinder::new(RimSettings::default()));
-    let first = match finder.find_from_centre(&image, &LENS, &[], [131.0, 124.0]) {
+    // The last frame's fit; the next frame's noise is drawn again.
+    let first = match finder.find_from_centre(&packed(&first_pixels), &LENS, &[], [131.0, 124.0]) {
         Ok(fit) => fit,
         Err(error) => panic!("bench rim: {error}"),
     };
+    let image = packed(&pixels);
     c.bench_function("rim from the disc centre, 256 x 256 frame", |b| {
         b.iter(|| black_box(finder.find_from_centre(black_box(&image), &LENS, &[], [131.0, 124.0])))
     });
