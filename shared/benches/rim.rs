@@ -57,17 +57,26 @@ fn bench(c: &mut Criterion) {
         Err(error) => panic!("bench frame: {error}"),
     };
     let mut finder = Box::new(RimFinder::new(RimSettings::default()));
-    // The last frame's fit; the next frame's noise is drawn again.
-    let first = match finder.find_from_centre(&packed(&first_pixels), &LENS, &[], [131.0, 124.0]) {
+    let frames = [packed(&first_pixels), packed(&pixels)];
+    let start = [131.0, 124.0];
+    c.bench_function("rim from the disc centre, 256 x 256 frame", |b| {
+        b.iter(|| black_box(finder.find_from_centre(black_box(&frames[1]), &LENS, &[], start)))
+    });
+    // Tracking: each frame from the last one's fit, the two frames (the
+    // noise drawn twice) in turn.
+    let mut last = match finder.find_from_centre(&frames[0], &LENS, &[], start) {
         Ok(fit) => fit,
         Err(error) => panic!("bench rim: {error}"),
     };
-    let image = packed(&pixels);
-    c.bench_function("rim from the disc centre, 256 x 256 frame", |b| {
-        b.iter(|| black_box(finder.find_from_centre(black_box(&image), &LENS, &[], [131.0, 124.0])))
-    });
+    let mut next = 1;
     c.bench_function("rim from the last frame's, 256 x 256 frame", |b| {
-        b.iter(|| black_box(finder.find_near(black_box(&image), &LENS, &[], &first, None)))
+        b.iter(|| {
+            match finder.find_near(black_box(&frames[next]), &LENS, &[], &last, None) {
+                Ok(fit) => last = fit,
+                Err(error) => panic!("bench rim, next frame: {error}"),
+            }
+            next = 1 - next;
+        })
     });
 }
 

@@ -18,7 +18,7 @@ use super::model::{
 use super::pixels::{Classified, PassPixel, RimPixels, ZONE_NEAR};
 pub use super::pixels::{MAX_RIM_PIXELS, RIM_SECTORS};
 use super::seed::seed_ellipse;
-use super::sums::{Gradient, Normal, PassSums};
+use super::sums::{Gradient, Levels, Normal, PassSums};
 use super::RimError;
 use crate::detection::identify::lens::LensModel;
 use crate::detection::{Blob, GrayImage};
@@ -242,18 +242,29 @@ fn keep_zones(
     );
 }
 
-/// Each sector's levels `(floor, band, surface)`, or `None` where the sector
-/// does not show all three or the band lacks contrast.
-fn sector_levels(
+/// Solves the levels `(floor, band, surface)` of each sector that has none
+/// in `levels`; a sector that does not show all three, or whose band lacks
+/// contrast, stays `None`.
+fn fill_levels(
     pixels: &RimPixels,
-    outer: &EdgeConic,
-    inner: &EdgeConic,
+    (outer, inner): &(EdgeConic, EdgeConic),
     width: f32,
     min_contrast: f64,
-) -> [Option<Vector3<f32>>; RIM_SECTORS] {
+    levels: &mut Levels,
+) {
+    let mut wanted = [false; RIM_SECTORS];
+    for (want, level) in wanted.iter_mut().zip(levels.iter()) {
+        *want = level.is_none();
+    }
+    if !wanted.contains(&true) {
+        return;
+    }
     let mut normal = [Matrix3::<f32>::zeros(); RIM_SECTORS];
     let mut right = [Vector3::<f32>::zeros(); RIM_SECTORS];
     for pixel in pixels.pass().filter(|p| p.weight > 0.0) {
+        if !wanted.get(pixel.sector).copied().unwrap_or(false) {
+            continue;
+        }
         let Some(m) = model_of(&pixel, outer, inner, width) else {
             continue;
         };
@@ -263,17 +274,28 @@ fn sector_levels(
             *r += wb * pixel.value;
         }
     }
-    let mut levels = [None; RIM_SECTORS];
-    for ((level, n), r) in levels.iter_mut().zip(&normal).zip(&right) {
+    for (((level, n), r), want) in levels.iter_mut().zip(&normal).zip(&right).zip(wanted) {
         // Each level needs a pixel or so of its own.
-        if n.diagonal().iter().any(|&d| d < 1.0) {
+        if !want || n.diagonal().iter().any(|&d| d < 1.0) {
             continue;
         }
         *level = n.cholesky().map(|c| c.solve(r)).filter(|l| {
             l.iter().all(|v| v.is_finite()) && f64::from((l[0] - l[1]).abs()) >= min_contrast
         });
     }
-    levels
+}
+
+/// What the last fit leaves the next frame's: its band, each sector's
+/// levels and the residuals' scale. The light changes little from one
+/// frame to the next, and the first joint step corrects the levels
+/// exactly (the model is linear in them), so the next frame needs no pass
+/// of its own to find them.
+#[derive(Debug, Clone, Copy)]
+struct Carried {
+    ellipse: Ellipse,
+    band_fraction: f64,
+    levels: Levels,
+    scale: f64,
 }
 
 /// Finds the rim frame after frame, in fixed memory.
@@ -281,6 +303,7 @@ fn sector_levels(
 pub struct RimFinder {
     settings: RimSettings,
     pixels: RimPixels,
+    carried: Option<Carried>,
 }
 
 impl RimFinder {
@@ -293,6 +316,7 @@ impl RimFinder {
         Self {
             settings,
             pixels: RimPixels::default(),
+            carried: None,
         }
     }
 
@@ -325,6 +349,7 @@ impl RimFinder {
             pole,
         };
         self.pixels.forget();
+        self.carried = None;
         self.refine(image, lens, marks, start, (&RAMP_SCHEDULE, f64::INFINITY))
     }
 
@@ -349,6 +374,10 @@ impl RimFinder {
             band_fraction: last.band_fraction,
             pole,
         };
+        // The levels and scale carry over only from this very fit.
+        self.carried = self
+            .carried
+            .filter(|c| c.ellipse == last.ellipse && c.band_fraction == last.band_fraction);
         self.refine(image, lens, marks, start, (&NEAR_SCHEDULE, NEAR_TRUST_PX))
     }
 
@@ -357,7 +386,7 @@ impl RimFinder {
     fn pass(
         &mut self,
         edges: &(EdgeConic, EdgeConic),
-        levels: &[Option<Vector3<f32>>; RIM_SECTORS],
+        levels: &Levels,
         width: f32,
         cutoff: Option<f32>,
     ) -> PassSums {
@@ -410,8 +439,30 @@ impl RimFinder {
         lens: &LensModel,
         marks: &[Blob],
         start: Geometry,
-        (schedule, trust_px): (&[f64], f64),
+        schedule: (&[f64], f64),
     ) -> Result<RimFit, RimError> {
+        let carried = self.carried.take();
+        let (fit, levels) = self.iterate(image, lens, marks, start, schedule, carried)?;
+        self.carried = Some(Carried {
+            ellipse: fit.ellipse,
+            band_fraction: fit.band_fraction,
+            levels,
+            scale: fit.noise_grey,
+        });
+        Ok(fit)
+    }
+
+    /// Gauss-Newton from `start`, with the levels and scale `carried` from
+    /// the last frame where there are; the fit and its final levels.
+    fn iterate(
+        &mut self,
+        image: &GrayImage<'_>,
+        lens: &LensModel,
+        marks: &[Blob],
+        start: Geometry,
+        (schedule, trust_px): (&[f64], f64),
+        carried: Option<Carried>,
+    ) -> Result<(RimFit, Levels), RimError> {
         let settings = self.settings;
         self.pixels.gather(
             image,
@@ -431,18 +482,26 @@ impl RimFinder {
         let mut geometry = start;
         let mut last: Option<(Normal, f64, usize, usize, f64)> = None;
         let mut iterations = 0;
-        let mut scale: Option<f64> = None;
+        let mut scale: Option<f64> = carried.map(|c| c.scale);
         let mut last_step_px = f64::INFINITY;
-        // The levels at the start; each step below moves them with the
-        // edges (the joint Gauss-Newton step, with the levels eliminated).
-        let mut levels = {
-            let width = schedule.first().copied().unwrap_or(1.0) as f32;
+        // The levels at the start (the last frame's where they are, a pass
+        // of their own for the sectors without); each step below moves
+        // them with the edges (the joint Gauss-Newton step, with the
+        // levels eliminated).
+        let mut levels = carried.map_or([None; RIM_SECTORS], |c| c.levels);
+        {
+            let width = schedule.first().copied().unwrap_or(1.0);
             let turn = libm::sincos(geometry.ellipse.angle_rad);
             let edges = geometry.edges(turn, origin).ok_or(RimError::Degenerate)?;
-            keep_zones(&mut self.pixels, &geometry, turn, &edges, f64::from(width));
-            let (outer, inner) = edges;
-            sector_levels(&self.pixels, &outer, &inner, width, settings.min_contrast)
-        };
+            keep_zones(&mut self.pixels, &geometry, turn, &edges, width);
+            fill_levels(
+                &self.pixels,
+                &edges,
+                width as f32,
+                settings.min_contrast,
+                &mut levels,
+            );
+        }
         for iteration in 0..settings.max_iterations {
             iterations = iteration + 1;
             let width = schedule.get(iteration).copied().unwrap_or(1.0);
@@ -530,7 +589,7 @@ impl RimFinder {
         let [a, b] = geometry.ellipse.semi_axes_px;
         let radius_row = SMatrix::<f64, 1, 5>::new(0.0, 0.0, 0.5 * b / r, 0.5 * a / r, 0.0);
         let radius_variance = (radius_row * covariance * radius_row.transpose()).x;
-        Ok(RimFit {
+        let fit = RimFit {
             ellipse: geometry.ellipse,
             band_fraction: geometry.band_fraction,
             pole_px: geometry.pole,
@@ -542,7 +601,8 @@ impl RimFinder {
             contrast_grey: contrast,
             iterations,
             last_step_px,
-        })
+        };
+        Ok((fit, levels))
     }
 }
 
@@ -585,7 +645,7 @@ fn largest_move(before: &Ellipse, (sin, cos): (f64, f64), after: &Locator) -> f6
 }
 
 /// Median of the sectors' `|floor - band|`.
-fn median_contrast(levels: &[Option<Vector3<f32>>; RIM_SECTORS]) -> f64 {
+fn median_contrast(levels: &Levels) -> f64 {
     let mut contrasts = [0.0f64; RIM_SECTORS];
     let mut count = 0;
     for (slot, level) in contrasts.iter_mut().zip(levels.iter().flatten()) {

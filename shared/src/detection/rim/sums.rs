@@ -12,6 +12,9 @@ use super::pixels::RIM_SECTORS;
 pub type Normal = SMatrix<f64, PARAMETERS, PARAMETERS>;
 /// The edges' gradient (and step), `f64`.
 pub type Gradient = SVector<f64, PARAMETERS>;
+/// Each sector's levels `(floor, band, surface)`, `None` where a sector
+/// does not show the band.
+pub type Levels = [Option<Vector3<f32>>; RIM_SECTORS];
 
 /// Bins of 0.25 grey for the residuals' median.
 const HISTOGRAM_BINS: usize = 256;
@@ -191,12 +194,7 @@ impl PassSums {
     /// Moves each sector's levels by their part of the joint step, given
     /// the edges' `step`: `V^-1 (g_l - C^T step)`. A sector whose band
     /// loses its contrast drops out.
-    pub fn step_levels(
-        &self,
-        levels: &mut [Option<Vector3<f32>>; RIM_SECTORS],
-        step: &Gradient,
-        min_contrast: f64,
-    ) {
+    pub fn step_levels(&self, levels: &mut Levels, step: &Gradient, min_contrast: f64) {
         let step = step.cast::<f32>();
         for (((level, v), c), g) in levels
             .iter_mut()
