@@ -211,8 +211,9 @@ fn model_of(
     }
 }
 
-/// Works out the pixels' zones again unless the edges moved less than
-/// [`ZONE_MARGIN_PX`] from where they were last worked out, for ramps no
+/// Works out the pixels' zones again unless the edges moved less than half
+/// of [`ZONE_MARGIN_PX`] from where they were last worked out (the 16
+/// points [`largest_move`] looks at, and the band's width), for ramps no
 /// wider.
 fn keep_zones(
     pixels: &mut RimPixels,

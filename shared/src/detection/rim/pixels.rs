@@ -11,7 +11,6 @@
 use heapless::Vec;
 
 use super::ellipse::{Ellipse, Locator};
-use super::seed::near_a_mark;
 use crate::detection::identify::lens::LensModel;
 use crate::detection::MAX_BLOBS;
 use crate::detection::{Blob, GrayImage};
@@ -85,6 +84,8 @@ pub struct RimPixels {
     /// A bit per pixel: a mark covers it in this frame.
     masked: [u32; MAX_RIM_PIXELS / 32],
     origin_px: [f64; 2],
+    /// How far the lens moves the band's pixels, px, and 1 px more.
+    lens_shift_px: f64,
     gathered: Option<Gathered>,
 }
 
@@ -99,6 +100,7 @@ impl Default for RimPixels {
             classified: None,
             masked: [0; MAX_RIM_PIXELS / 32],
             origin_px: [0.0; 2],
+            lens_shift_px: 0.0,
             gathered: None,
         }
     }
@@ -189,6 +191,7 @@ impl RimPixels {
             lens_shift = lens_shift.max(libm::hypot(d[0] - on[0], d[1] - on[1]));
         }
         lens_shift += 1.0;
+        self.lens_shift_px = lens_shift;
         let (width, height) = (image.width(), image.height());
         // The image's border row and column are not trusted.
         let clamp = |v: f64, size: usize| (v.max(1.0) as usize).min(size.saturating_sub(2));
@@ -252,30 +255,33 @@ impl RimPixels {
         self.values.clear();
         self.weights.clear();
         self.masked = [0; MAX_RIM_PIXELS / 32];
-        // Only marks within reach of the pixels' box are checked.
-        let (mut lo, mut hi) = ([u16::MAX; 2], [0u16; 2]);
-        for site in &self.sites {
-            lo = [lo[0].min(site.u), lo[1].min(site.v)];
-            hi = [hi[0].max(site.u), hi[1].max(site.v)];
-        }
-        let mut near: Vec<Blob, MAX_BLOBS> = Vec::new();
-        for mark in marks {
-            let reach = f64::from(mark.semi_major_px) + mark_margin_px;
-            let (x, y) = (f64::from(mark.x_px), f64::from(mark.y_px));
-            if x + reach >= f64::from(lo[0])
-                && x - reach <= f64::from(hi[0])
-                && y + reach >= f64::from(lo[1])
-                && y - reach <= f64::from(hi[1])
-            {
-                // No more marks than the detector gives can come.
-                let _ = near.push(*mark);
+        // Only the marks within reach of the band are checked: each as its
+        // centre and squared reach, distorted px, in f32.
+        let mut near: Vec<(f32, f32, f32), MAX_BLOBS> = Vec::new();
+        if let Some(gathered) = &self.gathered {
+            let locator = gathered.ellipse.locator();
+            let (inner_reach, outer_reach) = gathered.reach_px;
+            for mark in marks {
+                let reach = f64::from(mark.semi_major_px) + mark_margin_px;
+                let slack = reach + self.lens_shift_px;
+                let at = [f64::from(mark.x_px), f64::from(mark.y_px)];
+                if locator
+                    .distance_px(at)
+                    .is_some_and(|d| d <= outer_reach + slack && d >= -(inner_reach + slack))
+                {
+                    // No more marks than the detector gives can come.
+                    let _ = near.push((mark.x_px, mark.y_px, (reach * reach) as f32));
+                }
             }
         }
         let mut left = 0;
         for (k, site) in self.sites.iter().enumerate() {
             let (u, v) = (usize::from(site.u), usize::from(site.v));
             let value = image.row(v).get(u).copied();
-            let covered = near_a_mark(&near, u as f64, v as f64, mark_margin_px);
+            let covered = near.iter().any(|&(x, y, reach2)| {
+                let (dx, dy) = (f32::from(site.u) - x, f32::from(site.v) - y);
+                dx * dx + dy * dy <= reach2
+            });
             let (value, weight) = match value {
                 Some(value) if !covered => {
                     left += 1;
