@@ -448,4 +448,34 @@ mod tests {
             );
         }
     }
+
+    #[test]
+    fn a_pixel_given_a_zone_is_modelled_as_one_placed_against_the_edges() {
+        let outer_ellipse = ellipse();
+        let origin = [130.0, 120.0];
+        let outer_coefficients = conic_coefficients(&outer_ellipse, origin);
+        // A band 4 px wide, so that some pixels lie off both its ramps.
+        let inner_coefficients =
+            concentric_coefficients(&outer_coefficients, [2.0, -3.0], 0.1).unwrap();
+        let outer = EdgeConic::new(outer_coefficients, SMatrix::zeros()).unwrap();
+        let inner = EdgeConic::new(inner_coefficients, SMatrix::zeros()).unwrap();
+        let (width, near) = (1.0f32, 9u8);
+        let mut zoned = [0usize; 3];
+        // A grid over the band and either side of it.
+        for i in 0..200 {
+            for j in 0..200 {
+                let (x, y) = (-60.0 + 0.6 * i as f32, -50.0 + 0.5 * j as f32);
+                let placed = PixelModel::at(&outer, &inner, x, y, width).unwrap();
+                let zone = PixelModel::zone_at(&outer, &inner, x, y, 0.5 * width + 0.4, near);
+                if zone == near {
+                    continue;
+                }
+                let given = PixelModel::in_zone(zone);
+                assert_eq!(given.basis, placed.basis, "({x}, {y}) zone {zone}");
+                assert_eq!(placed.zone(), Some(usize::from(zone)), "({x}, {y})");
+                zoned[usize::from(zone)] += 1;
+            }
+        }
+        assert!(zoned.iter().all(|&n| n > 100), "{zoned:?}");
+    }
 }

@@ -397,3 +397,94 @@ impl Gathered {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LENS: LensModel = LensModel {
+        f_px: 290.0,
+        cx: 127.5,
+        cy: 127.5,
+        k1: -0.05,
+        k2: 0.0,
+    };
+
+    fn ellipse(dx: f64) -> Ellipse {
+        Ellipse {
+            centre_px: [128.0 + dx, 126.0],
+            semi_axes_px: [60.0, 52.0],
+            angle_rad: 0.3,
+        }
+    }
+
+    fn mark(x: f32, y: f32) -> Blob {
+        Blob {
+            x_px: x,
+            y_px: y,
+            area_px: 12,
+            semi_major_px: 2.0,
+            semi_minor_px: 2.0,
+            orientation_rad: 0.0,
+            peak_contrast: 100,
+            mean_contrast: 80.0,
+            lopsidedness: 0.0,
+        }
+    }
+
+    #[test]
+    fn the_pixels_are_kept_while_the_band_stays_put_and_found_again_when_it_moves() {
+        let frame = std::vec![40u8; 256 * 256];
+        let image = GrayImage::packed(256, 256, &frame).unwrap();
+        let mut pixels = RimPixels::default();
+        pixels.gather(&image, &LENS, &ellipse(0.0), 2.0, (6.0, 3.5));
+        let found = pixels.sites.len();
+        // About the band's length times the reaches' 9.5 px.
+        assert!((3000..4096).contains(&found), "{found}");
+        // Every pixel's undistorted place lies within the reaches.
+        let locator = ellipse(0.0).locator();
+        for site in &pixels.sites {
+            let p = [
+                f64::from(site.x) + pixels.origin_px[0],
+                f64::from(site.y) + pixels.origin_px[1],
+            ];
+            let d = locator.distance_px(p).unwrap();
+            assert!((-6.0..=3.5).contains(&d), "{d}");
+        }
+        // A start a tenth of a pixel off keeps them (the origin stays).
+        pixels.gather(&image, &LENS, &ellipse(0.1), 2.0, (6.0, 3.5));
+        assert_eq!(pixels.origin_px, ellipse(0.0).centre_px);
+        // One a pixel off finds them again; so does another lens.
+        pixels.gather(&image, &LENS, &ellipse(1.0), 2.0, (6.0, 3.5));
+        assert_eq!(pixels.origin_px, ellipse(1.0).centre_px);
+        let other = LensModel { k1: 0.0, ..LENS };
+        pixels.gather(&image, &other, &ellipse(1.0), 2.0, (6.0, 3.5));
+        assert!(pixels.gathered.is_some_and(|g| g.lens == other));
+    }
+
+    #[test]
+    fn a_frame_masks_the_pixels_a_mark_covers_and_only_those() {
+        let frame = std::vec![40u8; 256 * 256];
+        let image = GrayImage::packed(256, 256, &frame).unwrap();
+        let mut pixels = RimPixels::default();
+        pixels.gather(&image, &LENS, &ellipse(0.0), 2.0, (6.0, 3.5));
+        let all = pixels.load(&image, &[], 2.5);
+        assert_eq!(all, pixels.sites.len());
+        // A mark on the band (its distorted place) and one at the disc's
+        // centre, far inside the reach.
+        let on_band = LENS.distort(ellipse(0.0).point_at(1.0));
+        let marks = [
+            mark(on_band[0] as f32, on_band[1] as f32),
+            mark(128.0, 126.0),
+        ];
+        let left = pixels.load(&image, &marks, 2.5);
+        let covered = pixels
+            .sites
+            .iter()
+            .filter(|s| (f64::from(s.u) - on_band[0]).hypot(f64::from(s.v) - on_band[1]) <= 4.5)
+            .count();
+        assert!(covered > 20, "{covered}");
+        assert_eq!(left, all - covered);
+        assert_eq!(pixels.pass().count(), left);
+    }
+}
