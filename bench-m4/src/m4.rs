@@ -403,7 +403,7 @@ fn detect_frame(timer: &timer::DualTimer) -> Option<()> {
 /// dark band 1.6 px wide at its edge (24) and the floor (50), by 4 x 4
 /// sub-pixels, as the host's criterion bench draws it, with noise of about
 /// 2 grey levels. The rim found from the disc centre (the first frame) and
-/// from the last frame's fit in the next frame (its noise drawn again), as
+/// from the last frame's fit in the next frame (a second draw of noise added), as
 /// every later frame is. `None` (the bench fails) when it is not found.
 fn rim_frame(timer: &timer::DualTimer) -> Option<()> {
     use shared::detection::identify::lens::LensModel;
@@ -454,7 +454,7 @@ fn rim_frame(timer: &timer::DualTimer) -> Option<()> {
             }
         }
     };
-    // The next frame: the noise drawn again on top.
+    // The next frame: a second draw of noise added to the first.
     add_noise(&mut pixels, 0x85eb_ca6b, 2);
     let Ok(image) = GrayImage::packed(SIDE, SIDE, &pixels) else {
         hprintln!("  rim: frame refused");

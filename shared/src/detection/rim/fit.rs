@@ -28,9 +28,10 @@ use crate::detection::{Blob, GrayImage};
 /// the pixel's own (1 px).
 const RAMP_SCHEDULE: [f64; 3] = [3.0, 2.0, 1.5];
 /// From the last frame's fit, a hundredth of a pixel off: the pixel's own
-/// ramp at once (a wider ramp's optimum lies tenths of a pixel away, and
-/// coming back from it cost steps).
+/// ramp at once (a wider ramp's optimum lies tenths of a pixel away).
 const NEAR_SCHEDULE: [f64; 0] = [];
+/// The pixel's own ramp, px: the width after a schedule.
+const PIXEL_RAMP_PX: f64 = 1.0;
 /// A first step from the last frame's fit longer than this, px, means the
 /// rim moved (the camera was knocked): the fit gives up, and the caller
 /// starts again from the disc centre.
@@ -213,8 +214,8 @@ fn model_of(
 
 /// Works out the pixels' zones again unless the edges moved less than half
 /// of [`ZONE_MARGIN_PX`] from where they were last worked out (the 16
-/// points [`largest_move`] looks at, and the band's width), for ramps no
-/// wider.
+/// points [`largest_move`] looks at, the band's width and the pole), for
+/// ramps no wider.
 fn keep_zones(
     pixels: &mut RimPixels,
     geometry: &Geometry,
@@ -224,8 +225,14 @@ fn keep_zones(
 ) {
     let band_px = geometry.band_fraction * geometry.radius();
     if let Some(c) = pixels.classified() {
+        // The inner edge follows the pole by about the band's fraction.
+        let pole_moved = libm::hypot(
+            c.pole_px[0] - geometry.pole[0],
+            c.pole_px[1] - geometry.pole[1],
+        );
         let moved = largest_move(&c.ellipse, c.turn, &geometry.ellipse.locator())
-            + (c.band_px - band_px).abs();
+            + (c.band_px - band_px).abs()
+            + pole_moved * geometry.band_fraction;
         if width <= c.width_px && moved < 0.5 * ZONE_MARGIN_PX {
             return;
         }
@@ -237,6 +244,7 @@ fn keep_zones(
             ellipse: geometry.ellipse,
             turn,
             band_px,
+            pole_px: geometry.pole,
             width_px: width,
         },
         |x, y| PixelModel::zone_at(outer, inner, x, y, half, ZONE_NEAR),
@@ -262,7 +270,7 @@ fn fill_levels(
     }
     let mut normal = [Matrix3::<f32>::zeros(); RIM_SECTORS];
     let mut right = [Vector3::<f32>::zeros(); RIM_SECTORS];
-    for pixel in pixels.pass().filter(|p| p.weight > 0.0) {
+    for pixel in pixels.pass() {
         if !wanted.get(pixel.sector).copied().unwrap_or(false) {
             continue;
         }
@@ -270,9 +278,8 @@ fn fill_levels(
             continue;
         };
         if let (Some(n), Some(r)) = (normal.get_mut(pixel.sector), right.get_mut(pixel.sector)) {
-            let wb = m.basis * pixel.weight;
-            *n += wb * m.basis.transpose();
-            *r += wb * pixel.value;
+            *n += m.basis * m.basis.transpose();
+            *r += m.basis * pixel.value;
         }
     }
     for (((level, n), r), want) in levels.iter_mut().zip(&normal).zip(&right).zip(wanted) {
@@ -289,8 +296,9 @@ fn fill_levels(
 /// What the last fit leaves the next frame's: its band, each sector's
 /// levels and the residuals' scale. The light changes little from one
 /// frame to the next, and the first joint step corrects the levels
-/// exactly (the model is linear in them), so the next frame needs no pass
-/// of its own to find them.
+/// exactly (the model is linear in them) for the pixels the robust weight
+/// keeps, so the next frame needs no pass of its own to find them. Where
+/// the light jumps and the fit fails, it is tried again without them.
 #[derive(Debug, Clone, Copy)]
 struct Carried {
     ellipse: Ellipse,
@@ -308,8 +316,9 @@ pub struct RimFinder {
 }
 
 impl RimFinder {
-    /// Bytes of working memory (the pixels near the band; the sectors' sums
-    /// and the start's rays live on the stack while a frame is measured).
+    /// Bytes of working memory (the pixels near the band and the last
+    /// fit's levels; a pass's sums and the start's rays live on the stack
+    /// while a frame is measured).
     pub const WORKING_MEMORY_BYTES: usize = core::mem::size_of::<Self>();
 
     /// A finder with the given settings.
@@ -383,9 +392,9 @@ impl RimFinder {
     }
 
     /// One pass over the pixels at the edges: the residuals' histogram,
-    /// and with `cutoff` the robust weights and the sums.
+    /// and with `cutoff` (Tukey's) the sums.
     fn pass(
-        &mut self,
+        &self,
         edges: &(EdgeConic, EdgeConic),
         levels: &Levels,
         width: f32,
@@ -393,31 +402,20 @@ impl RimFinder {
     ) -> PassSums {
         let (outer, inner) = edges;
         let mut sums = PassSums::default();
-        let Some(cutoff) = cutoff else {
-            for pixel in self.pixels.pass() {
-                let Some(m) = model_of(&pixel, outer, inner, width) else {
-                    continue;
-                };
-                if let Some(level) = levels.get(pixel.sector).copied().flatten() {
-                    sums.count_residual(pixel.value - level.dot(&m.basis));
-                }
-            }
-            return sums;
-        };
-        self.pixels.reweigh(|pixel| {
+        for pixel in self.pixels.pass() {
+            // A sector without levels this frame is left out.
             let (Some(m), Some(level)) = (
                 model_of(&pixel, outer, inner, width),
                 levels.get(pixel.sector).copied().flatten(),
             ) else {
-                // A sector without levels this time: its pixels are looked
-                // at again when its levels are next solved.
-                return Some(1.0);
+                continue;
             };
             let residual = pixel.value - level.dot(&m.basis);
             sums.count_residual(residual);
+            let Some(cutoff) = cutoff else { continue };
             let u = residual / cutoff;
             if u.abs() >= 1.0 {
-                return Some(0.0);
+                continue;
             }
             let w = (1.0 - u * u) * (1.0 - u * u);
             match m.zone() {
@@ -429,8 +427,7 @@ impl RimFinder {
                     sums.add(pixel.sector, &m.basis, &row, w, residual);
                 }
             }
-            Some(w)
-        });
+        }
         sums
     }
 
@@ -443,7 +440,12 @@ impl RimFinder {
         schedule: (&[f64], f64),
     ) -> Result<RimFit, RimError> {
         let carried = self.carried.take();
-        let (fit, levels) = self.iterate(image, lens, marks, start, schedule, carried)?;
+        let (fit, levels) = match self.iterate(image, lens, marks, start, schedule, carried) {
+            // The light jumped (the last levels' cutoff refused whole
+            // zones): once more with levels and scale of this frame's own.
+            Err(_) if carried.is_some() => self.iterate(image, lens, marks, start, schedule, None),
+            result => result,
+        }?;
         self.carried = Some(Carried {
             ellipse: fit.ellipse,
             band_fraction: fit.band_fraction,
@@ -469,7 +471,6 @@ impl RimFinder {
             image,
             lens,
             &start.ellipse,
-            start.band_fraction * start.radius(),
             (settings.inner_reach_px, settings.outer_reach_px),
         );
         let found = self.pixels.load(image, marks, settings.mark_margin_px);
@@ -491,7 +492,7 @@ impl RimFinder {
         // levels eliminated).
         let mut levels = carried.map_or([None; RIM_SECTORS], |c| c.levels);
         {
-            let width = schedule.first().copied().unwrap_or(1.0);
+            let width = schedule.first().copied().unwrap_or(PIXEL_RAMP_PX);
             let turn = libm::sincos(geometry.ellipse.angle_rad);
             let edges = geometry.edges(turn, origin).ok_or(RimError::Degenerate)?;
             keep_zones(&mut self.pixels, &geometry, turn, &edges, width);
@@ -505,7 +506,7 @@ impl RimFinder {
         }
         for iteration in 0..settings.max_iterations {
             iterations = iteration + 1;
-            let width = schedule.get(iteration).copied().unwrap_or(1.0);
+            let width = schedule.get(iteration).copied().unwrap_or(PIXEL_RAMP_PX);
             let sectors = levels.iter().filter(|l| l.is_some()).count();
             if sectors < settings.min_sectors {
                 return Err(RimError::TooFewSectors {
@@ -569,7 +570,7 @@ impl RimFinder {
             if iteration == 0 && largest > trust_px {
                 return Err(RimError::Diverged);
             }
-            if width <= 1.0 && largest < CONVERGED_PX {
+            if width <= PIXEL_RAMP_PX && largest < CONVERGED_PX {
                 break;
             }
         }

@@ -10,7 +10,7 @@
 //! `s = sqrt(q + 1)`, the same as [`super::ellipse::Locator::distance_px`];
 //! its derivatives along the conic's six coefficients are closed-form, and
 //! those along the fit's parameters come from a 6 x 6 matrix worked out once
-//! an iteration ([`EdgeConic::chain`]), so that the pencil of concentric
+//! an iteration (the edge's `chain`), so that the pencil of concentric
 //! circles' images that places the inner edge costs nothing per pixel.
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
@@ -55,7 +55,8 @@ pub struct EdgeDistance {
     pub distance_px: f32,
     /// `d distance / d q`.
     along_q: f32,
-    /// `d distance / d |grad q|^2`, times the half-gradient's parts.
+    /// `d distance / d gx` and `d distance / d gy`, with `(gx, gy)` half
+    /// of `grad q`.
     along_gx: f32,
     along_gy: f32,
 }

@@ -29,7 +29,7 @@ pub const ZONE_NEAR: u8 = 3;
 const OUTLINE_POINTS: usize = 64;
 
 /// Where one pixel near the band is.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy)]
 pub struct Site {
     /// Image column and row.
     u: u16,
@@ -51,6 +51,8 @@ pub struct Classified {
     pub turn: (f64, f64),
     /// The band's width, px.
     pub band_px: f64,
+    /// The disc centre's image that placed the inner edge, px.
+    pub pole_px: [f64; 2],
     /// The ramps' width, px.
     pub width_px: f64,
 }
@@ -59,7 +61,6 @@ pub struct Classified {
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Gathered {
     ellipse: Ellipse,
-    band_px: f64,
     lens: LensModel,
     size: (usize, usize),
     reach_px: (f64, f64),
@@ -72,9 +73,6 @@ pub struct RimPixels {
     sites: Vec<Site, MAX_RIM_PIXELS>,
     sectors: Vec<u8, MAX_RIM_PIXELS>,
     values: Vec<u8, MAX_RIM_PIXELS>,
-    /// Each pixel's robust weight from the last pass, in 255ths; 0 for a
-    /// pixel the last pass dropped or a mark covers.
-    weights: Vec<u8, MAX_RIM_PIXELS>,
     /// Each pixel's zone off the ramps (0 the floor, 1 the band, 2 the
     /// disc's surface) while the edges stay near where they were when it
     /// was worked out, else [`ZONE_NEAR`].
@@ -95,7 +93,6 @@ impl Default for RimPixels {
             sites: Vec::new(),
             sectors: Vec::new(),
             values: Vec::new(),
-            weights: Vec::new(),
             zones: Vec::new(),
             classified: None,
             masked: [0; MAX_RIM_PIXELS / 32],
@@ -112,7 +109,7 @@ pub fn sector_of(phase_rad: f64) -> usize {
     ((turn * RIM_SECTORS as f64) as usize).min(RIM_SECTORS - 1)
 }
 
-/// One pixel of a pass: where it is, its sector, value and last weight.
+/// One pixel of a pass: where it is, its sector, value and zone.
 #[derive(Debug, Clone, Copy)]
 pub struct PassPixel {
     /// Relative to the origin, px.
@@ -123,8 +120,6 @@ pub struct PassPixel {
     pub sector: usize,
     /// Its grey level this frame.
     pub value: f32,
-    /// Its robust weight from the last pass, 0 to 1.
-    pub weight: f32,
     /// Its zone, or [`ZONE_NEAR`].
     pub zone: u8,
 }
@@ -141,20 +136,18 @@ impl RimPixels {
         self.gathered = None;
     }
 
-    /// Finds the pixels within reach of a band whose outer edge is `ellipse`
-    /// and whose width is `band_px`, unless those found last are for a band
+    /// Finds the pixels within `reach_px` (inside, outside) of a band whose
+    /// outer edge is `ellipse`, unless those found last are for an edge
     /// within a fraction of a pixel of it.
     pub fn gather(
         &mut self,
         image: &GrayImage<'_>,
         lens: &LensModel,
         ellipse: &Ellipse,
-        band_px: f64,
         reach_px: (f64, f64),
     ) {
         let wanted = Gathered {
             ellipse: *ellipse,
-            band_px,
             lens: *lens,
             size: (image.width(), image.height()),
             reach_px,
@@ -249,11 +242,10 @@ impl RimPixels {
         self.gathered = Some(wanted);
     }
 
-    /// Reads this frame's values, masks the pixels near `marks` and resets
-    /// the weights; gives the pixels left.
+    /// Reads this frame's values and masks the pixels near `marks`; gives
+    /// the pixels left.
     pub fn load(&mut self, image: &GrayImage<'_>, marks: &[Blob], mark_margin_px: f64) -> usize {
         self.values.clear();
-        self.weights.clear();
         self.masked = [0; MAX_RIM_PIXELS / 32];
         // Only the marks within reach of the band are checked: each as its
         // centre and squared reach, distorted px, in f32.
@@ -269,7 +261,8 @@ impl RimPixels {
                     .distance_px(at)
                     .is_some_and(|d| d <= outer_reach + slack && d >= -(inner_reach + slack))
                 {
-                    // No more marks than the detector gives can come.
+                    // Past MAX_BLOBS marks (more than the detector
+                    // gives) the rest are left to the robust weights.
                     let _ = near.push((mark.x_px, mark.y_px, (reach * reach) as f32));
                 }
             }
@@ -282,76 +275,39 @@ impl RimPixels {
                 let (dx, dy) = (f32::from(site.u) - x, f32::from(site.v) - y);
                 dx * dx + dy * dy <= reach2
             });
-            let (value, weight) = match value {
+            let value = match value {
                 Some(value) if !covered => {
                     left += 1;
-                    (value, u8::MAX)
+                    value
                 }
                 _ => {
                     if let Some(word) = self.masked.get_mut(k / 32) {
                         *word |= 1 << (k % 32);
                     }
-                    (0, 0)
+                    0
                 }
             };
-            // The three vectors share the sites' capacity.
+            // The values share the sites' capacity.
             let _ = self.values.push(value);
-            let _ = self.weights.push(weight);
         }
         left
     }
 
-    /// The pixels of this frame no mark covers, with their last weights.
+    /// The pixels of this frame no mark covers.
     pub fn pass(&self) -> impl Iterator<Item = PassPixel> + '_ {
         self.sites
             .iter()
             .zip(self.sectors.iter().zip(&self.zones))
-            .zip(self.values.iter().zip(&self.weights))
+            .zip(&self.values)
             .enumerate()
             .filter(|(k, _)| !self.is_masked(*k))
-            .map(
-                |(_, ((site, (&sector, &zone)), (&value, &weight)))| PassPixel {
-                    x: site.x,
-                    y: site.y,
-                    sector: usize::from(sector),
-                    value: f32::from(value),
-                    weight: f32::from(weight) * (1.0 / 255.0),
-                    zone,
-                },
-            )
-    }
-
-    /// The same pass, where `visit` may give each pixel a new robust weight
-    /// for the next pass.
-    pub fn reweigh(&mut self, mut visit: impl FnMut(PassPixel) -> Option<f32>) {
-        let masked = self.masked;
-        let is_masked = |k: usize| {
-            masked
-                .get(k / 32)
-                .is_none_or(|word| word & (1 << (k % 32)) != 0)
-        };
-        for (k, ((site, (&sector, &zone)), (&value, weight))) in self
-            .sites
-            .iter()
-            .zip(self.sectors.iter().zip(&self.zones))
-            .zip(self.values.iter().zip(self.weights.iter_mut()))
-            .enumerate()
-        {
-            if is_masked(k) {
-                continue;
-            }
-            let pixel = PassPixel {
+            .map(|(_, ((site, (&sector, &zone)), &value))| PassPixel {
                 x: site.x,
                 y: site.y,
                 sector: usize::from(sector),
                 value: f32::from(value),
-                weight: f32::from(*weight) * (1.0 / 255.0),
                 zone,
-            };
-            if let Some(w) = visit(pixel) {
-                *weight = (w.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
-            }
-        }
+            })
     }
 
     /// The band the zones were worked out for, if they were.
@@ -377,12 +333,10 @@ impl RimPixels {
 
 impl Gathered {
     /// Whether the pixels found for `self` serve a band `wanted`: the same
-    /// lens, image and reaches, and edges within [`REGATHER_PX`].
+    /// lens, image and reaches, and an outer edge within [`REGATHER_PX`]
+    /// (the reaches are measured from it).
     fn still_serves(&self, wanted: &Self) -> bool {
-        if self.lens != wanted.lens
-            || self.size != wanted.size
-            || self.reach_px != wanted.reach_px
-            || (self.band_px - wanted.band_px).abs() > REGATHER_PX
+        if self.lens != wanted.lens || self.size != wanted.size || self.reach_px != wanted.reach_px
         {
             return false;
         }
@@ -437,7 +391,7 @@ mod tests {
         let frame = std::vec![40u8; 256 * 256];
         let image = GrayImage::packed(256, 256, &frame).unwrap();
         let mut pixels = RimPixels::default();
-        pixels.gather(&image, &LENS, &ellipse(0.0), 2.0, (6.0, 3.5));
+        pixels.gather(&image, &LENS, &ellipse(0.0), (6.0, 3.5));
         let found = pixels.sites.len();
         // About the band's length times the reaches' 9.5 px.
         assert!((3000..4096).contains(&found), "{found}");
@@ -452,13 +406,13 @@ mod tests {
             assert!((-6.0..=3.5).contains(&d), "{d}");
         }
         // A start a tenth of a pixel off keeps them (the origin stays).
-        pixels.gather(&image, &LENS, &ellipse(0.1), 2.0, (6.0, 3.5));
+        pixels.gather(&image, &LENS, &ellipse(0.1), (6.0, 3.5));
         assert_eq!(pixels.origin_px, ellipse(0.0).centre_px);
         // One a pixel off finds them again; so does another lens.
-        pixels.gather(&image, &LENS, &ellipse(1.0), 2.0, (6.0, 3.5));
+        pixels.gather(&image, &LENS, &ellipse(1.0), (6.0, 3.5));
         assert_eq!(pixels.origin_px, ellipse(1.0).centre_px);
         let other = LensModel { k1: 0.0, ..LENS };
-        pixels.gather(&image, &other, &ellipse(1.0), 2.0, (6.0, 3.5));
+        pixels.gather(&image, &other, &ellipse(1.0), (6.0, 3.5));
         assert!(pixels.gathered.is_some_and(|g| g.lens == other));
     }
 
@@ -467,7 +421,7 @@ mod tests {
         let frame = std::vec![40u8; 256 * 256];
         let image = GrayImage::packed(256, 256, &frame).unwrap();
         let mut pixels = RimPixels::default();
-        pixels.gather(&image, &LENS, &ellipse(0.0), 2.0, (6.0, 3.5));
+        pixels.gather(&image, &LENS, &ellipse(0.0), (6.0, 3.5));
         let all = pixels.load(&image, &[], 2.5);
         assert_eq!(all, pixels.sites.len());
         // A mark on the band (its distorted place) and one at the disc's

@@ -203,6 +203,9 @@ impl PassSums {
             .zip(&self.level_gradient)
         {
             let Some(now) = level else { continue };
+            // A zone the robust weight all but empties makes its level
+            // loose, its pixels' residuals large and their weights nil: the
+            // zone then fails the Cholesky and the sector drops out.
             let moved = v.cholesky().map(|f| f.solve(&(g - c.transpose() * step)));
             *level = moved.map(|m| *now + m).filter(|l| {
                 l.iter().all(|v| v.is_finite()) && f64::from((l[0] - l[1]).abs()) >= min_contrast

@@ -299,3 +299,43 @@ fn the_next_frame_starts_from_the_last_fit_and_a_moved_rim_is_refused() {
         .find_from_centre(&image, &LENS, &[], centre_px(&scene))
         .is_ok());
 }
+
+#[test]
+fn frame_after_frame_the_last_fit_carries_over_and_a_jump_in_the_light_is_taken() {
+    let scene = scene([-0.2, 0.15, 2.6], [-0.12, 0.06], 2.5);
+    let mut finder = RimFinder::new(RimSettings::default());
+    let first = {
+        let pixels = render(&scene, 11);
+        let image = GrayImage::packed(SIZE, SIZE, &pixels).unwrap();
+        finder
+            .find_from_centre(&image, &LENS, &[], centre_px(&scene))
+            .unwrap()
+    };
+    // Ten frames, each from the last one's fit (its levels and scale
+    // carried), every one as good as a fit from scratch.
+    let mut last = first;
+    for seed in 12..22 {
+        let pixels = render(&scene, seed);
+        let image = GrayImage::packed(SIZE, SIZE, &pixels).unwrap();
+        last = finder.find_near(&image, &LENS, &[], &last, None).unwrap();
+        let (bias, rms) = score(&scene, &last);
+        assert!(
+            bias.abs() < 0.03 && rms < 0.05,
+            "{seed}: bias {bias:.4} rms {rms:.4}"
+        );
+        assert!(last.iterations <= 4, "{last:?}");
+    }
+    // The light jumps by 40 grey levels, far past the carried levels'
+    // cutoff: the frame is measured all the same.
+    let mut pixels = render(&scene, 30);
+    for p in pixels.iter_mut() {
+        *p = p.saturating_add(40);
+    }
+    let image = GrayImage::packed(SIZE, SIZE, &pixels).unwrap();
+    let lit = finder.find_near(&image, &LENS, &[], &last, None).unwrap();
+    let (bias, rms) = score(&scene, &lit);
+    assert!(
+        bias.abs() < 0.03 && rms < 0.05,
+        "bias {bias:.4} rms {rms:.4}"
+    );
+}
