@@ -26,9 +26,9 @@
 //! eliminated sector by sector).
 //!
 //! Working memory: [`RimFinder::WORKING_MEMORY_BYTES`] (the pixels near the
-//! band, [`fit::MAX_RIM_PIXELS`] of them at most, 16 B each with their
-//! sector, value, weight and zone); a pass's sums (about 5 KiB) live on the
-//! stack.
+//! band, [`fit::MAX_RIM_PIXELS`] of them at most, 15 B each with their
+//! sector, value and zone, and the last fit's levels); a pass's sums (about
+//! 5 KiB) live on the stack.
 
 pub mod ellipse;
 pub mod fit;
