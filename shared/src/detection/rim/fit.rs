@@ -491,7 +491,8 @@ impl RimFinder {
         // them with the edges (the joint Gauss-Newton step, with the
         // levels eliminated).
         let mut levels = carried.map_or([None; RIM_SECTORS], |c| c.levels);
-        {
+        // The start's edges serve the first iteration too.
+        let mut start_edges = {
             let width = schedule.first().copied().unwrap_or(PIXEL_RAMP_PX);
             let turn = libm::sincos(geometry.ellipse.angle_rad);
             let edges = geometry.edges(turn, origin).ok_or(RimError::Degenerate)?;
@@ -503,7 +504,8 @@ impl RimFinder {
                 settings.min_contrast,
                 &mut levels,
             );
-        }
+            Some((turn, edges))
+        };
         for iteration in 0..settings.max_iterations {
             iterations = iteration + 1;
             let width = schedule.get(iteration).copied().unwrap_or(PIXEL_RAMP_PX);
@@ -514,8 +516,16 @@ impl RimFinder {
                     needed: settings.min_sectors,
                 });
             }
-            let turn = libm::sincos(geometry.ellipse.angle_rad);
-            let edges = geometry.edges(turn, origin).ok_or(RimError::Degenerate)?;
+            let (turn, edges) = match start_edges.take() {
+                Some(ready) => ready,
+                None => {
+                    let turn = libm::sincos(geometry.ellipse.angle_rad);
+                    (
+                        turn,
+                        geometry.edges(turn, origin).ok_or(RimError::Degenerate)?,
+                    )
+                }
+            };
             keep_zones(&mut self.pixels, &geometry, turn, &edges, width);
             // The residuals' scale: the last pass's, or a pass of its own
             // the first time.

@@ -142,8 +142,8 @@ impl EdgeConic {
     }
 
     /// Where `(x, y)` (px from the origin) lies, or `None` at the centre
-    /// (no gradient) or for a NaN.
-    #[inline]
+    /// (no gradient) or for a NaN (the tests' view of [`Self::side`]).
+    #[cfg(test)]
     pub fn distance(&self, x: f32, y: f32) -> Option<EdgeDistance> {
         match self.side(x, y, f32::INFINITY)? {
             Side::Near(at) => Some(at),
