@@ -235,6 +235,9 @@ pub struct IdentifyReport {
     pub ambiguous: u32,
     /// Tracks that had to be dropped for want of room.
     pub tracks_full: u32,
+    /// Blobs refused to a disc mark's track because they did not move with
+    /// the disc (another mark passing where it was predicted).
+    pub off_disc_motion: u32,
 }
 
 /// The disc's image from the reference mark's path: a rotating-frame point
@@ -555,6 +558,7 @@ impl Identifier {
         let l = self.settings.reference_radius_m;
         let first_gate = self.settings.first_gate_px_per_rad;
         let mut innovation: Vec<f64, MAX_TRACKS> = Vec::new();
+        let mut with_disc: Vec<Option<(PixelPoint, f64)>, MAX_TRACKS> = Vec::new();
         for (t, followed) in self.tracks.iter_mut().enumerate() {
             followed.blob = None;
             followed.sure = false;
@@ -607,6 +611,24 @@ impl Identifier {
                 }
             }
             let _ = choice.push(if count == 1 { found } else { None });
+            // A disc mark's blob turns with the disc from where the mark
+            // was last seen. The disc's image is the reference's path: a
+            // feature's own path turns about a centre within the centre
+            // gate of it (`find_features`), so the disc's motion misses a
+            // true feature by at most that gate per radian turned. A
+            // gripper mark crossing the spot where a hidden disc mark was
+            // predicted, and followed from there by the track's own
+            // prediction (30 Hz, cells 11000096 and 11000173: 3 to 4 px a
+            // frame off the disc's motion against at most 0.4 px for the
+            // true marks), is not.
+            let disc_label = matches!(
+                followed.label,
+                Some(MarkLabel::Reference | MarkLabel::PartFeature(_))
+            );
+            let _ = with_disc.push(disc.zip(on_disc).filter(|_| disc_label).map(|(d, p)| {
+                let centre_gate = (CENTRE_GATE_SHARE * d.radius_px).max(CENTRE_GATE_MIN_PX);
+                (p, OUTPUT_GATE_PX + centre_gate * libm::fabs(theta - theta1))
+            }));
             let _ = innovation.push(if track.misses == 0 {
                 nearest
             } else {
@@ -620,11 +642,12 @@ impl Identifier {
         for c in claims.iter() {
             let _ = ambiguous.push(*c > 1);
         }
-        for ((followed, chosen), innovation) in self
+        for (((followed, chosen), innovation), with_disc) in self
             .tracks
             .iter_mut()
             .zip(choice.iter())
             .zip(innovation.iter())
+            .zip(with_disc.iter())
         {
             let taken = chosen.filter(|&i| claims.get(i).copied() == Some(1));
             // A followed mark keeps its brightness: a blob sending much more
@@ -651,6 +674,19 @@ impl Identifier {
                     .flatten()
                     .is_some_and(|(_, _, flux)| steady(flux))
             });
+            let off_disc = |i: usize| {
+                with_disc.is_some_and(|(q, reach)| {
+                    points
+                        .get(i)
+                        .copied()
+                        .flatten()
+                        .is_some_and(|(p, _, _)| libm::hypot(p[0] - q[0], p[1] - q[1]) > reach)
+                })
+            };
+            if taken.is_some_and(off_disc) {
+                report.off_disc_motion += 1;
+            }
+            let taken = taken.filter(|&i| !off_disc(i));
             match taken.and_then(|i| points.get(i).copied().flatten().map(|p| (i, p))) {
                 Some((i, (p, area, flux))) => {
                     followed.track.update(theta, p, area, flux);

@@ -900,6 +900,55 @@ mod disc {
     }
 
     #[test]
+    fn a_mark_crossing_where_the_hidden_reference_was_predicted_is_not_followed() {
+        // A 30 Hz camera (0.02 rad a frame): the reference is hidden from
+        // frame 100; from frame 102 a gripper mark of its light passes 2 px
+        // from where it is predicted and goes on at 3.5 px a frame across
+        // the disc's motion, as in cell 11000096 of the 30 Hz Monte Carlo
+        // (the track's own prediction followed it for 20 frames).
+        let mut identifier = Identifier::new(settings());
+        let mut out = Vec::new();
+        let far = [[0.0; 3], [0.1, 0.0, 0.0]];
+        let step_rad = 0.02;
+        let crossing = pixel([L_M, 0.0], step_rad * 102.0);
+        let mut refused = 0;
+        let mut labelled_before = 0;
+        for k in 0..140 {
+            let theta = step_rad * k as f64;
+            let mut blobs: heapless::Vec<Blob, 8> = heapless::Vec::new();
+            let _ = blobs.push(blob(pixel([0.0, 0.0], theta), 18, CENTRE_FLUX));
+            match k {
+                0..=99 => {
+                    let _ = blobs.push(blob(pixel([L_M, 0.0], theta), 18, REFERENCE_FLUX));
+                }
+                102..=125 => {
+                    let along = 2.0 + 3.5 * (k - 102) as f64;
+                    let at = [crossing[0] - 0.7 * along, crossing[1] - 0.7 * along];
+                    let _ = blobs.push(blob(at, 16, REFERENCE_FLUX));
+                }
+                _ => {}
+            }
+            let report = identifier.identify(theta, &blobs, &far, &mut out);
+            refused += report.off_disc_motion;
+            let reference = labels_of(&out, MarkLabel::Reference);
+            if k < 100 && reference.is_some() {
+                labelled_before += 1;
+            }
+            if (102..=125).contains(&k) {
+                assert_eq!(reference, None, "frame {k}: the crossing mark labelled");
+            }
+        }
+        assert!(
+            labelled_before > 20,
+            "the reference was labelled {labelled_before} times"
+        );
+        assert!(
+            refused > 0,
+            "the crossing mark was never offered to the track"
+        );
+    }
+
+    #[test]
     fn a_mark_resting_beside_the_hidden_centre_is_not_the_centre() {
         let mut identifier = Identifier::new(settings());
         let mut out = Vec::new();
