@@ -51,11 +51,59 @@ impl Background {
         background
     }
 
-    /// Background level (rounded) and threshold (floored: a pixel is
-    /// foreground when brighter than it) at every pixel of row `y`, for the
-    /// threshold `level + max(min_contrast, noise_factor * noise)`: both
-    /// taken at the tile centres, interpolated down the tile columns for this
-    /// row, then along the row in fixed point (one addition a pixel).
+    /// The level (rounded) and the threshold (floored) along row `y`, for
+    /// the threshold `level + max(min_contrast, noise_factor * noise)`:
+    /// both taken at the tile centres and interpolated down the tile
+    /// columns for this row; along the row they step linearly in fixed
+    /// point between the centres ([`RowRamps::segments`]).
+    pub fn row_ramps(&self, y: usize, min_contrast: f32, noise_factor: f32) -> RowRamps {
+        let mut ramps = RowRamps::default();
+        self.fill_row_ramps(y, min_contrast, noise_factor, &mut ramps);
+        ramps
+    }
+
+    /// [`Background::row_ramps`] into `ramps` (a row at a time without a
+    /// copy).
+    pub fn fill_row_ramps(
+        &self,
+        y: usize,
+        min_contrast: f32,
+        noise_factor: f32,
+        ramps: &mut RowRamps,
+    ) {
+        let (ty0, ty1, fy) = span(y, self.tiles_y);
+        ramps.tiles = self.tiles_x;
+        let fixed = |value: f32| (value * 256.0) as i32;
+        let tiles = self.tiles_x;
+        fn tile_row(values: &[u8; MAX_TILES], ty: usize, tiles: usize) -> &[u8] {
+            values.get(ty * tiles..(ty + 1) * tiles).unwrap_or(&[])
+        }
+        let levels =
+            tile_row(&self.level, ty0, tiles)
+                .iter()
+                .zip(tile_row(&self.level, ty1, tiles));
+        let noises =
+            tile_row(&self.noise, ty0, tiles)
+                .iter()
+                .zip(tile_row(&self.noise, ty1, tiles));
+        let centres = ramps.level.iter_mut().zip(ramps.threshold.iter_mut());
+        for ((cl, ct), ((&l0, &l1), (&n0, &n1))) in centres.zip(levels.zip(noises)) {
+            let lerp = |v0: u8, v1: u8| f32::from(v0) + fy * (f32::from(v1) - f32::from(v0));
+            let (l, n) = (lerp(l0, l1), lerp(n0, n1));
+            let scaled = noise_factor * n;
+            let margin = if scaled > min_contrast {
+                scaled
+            } else {
+                min_contrast
+            };
+            // Rounded level, floored threshold, both as a 24.8 fixed point.
+            *cl = fixed(l + 0.5);
+            *ct = fixed(l + margin);
+        }
+    }
+
+    /// The background level (rounded) and the threshold (floored) at every
+    /// pixel of row `y` (see [`Background::row_ramps`]).
     pub fn thresholds(
         &self,
         y: usize,
@@ -65,34 +113,16 @@ impl Background {
         level: &mut [u8],
         threshold: &mut [u8],
     ) {
-        let (ty0, ty1, fy) = span(y, self.tiles_y);
-        let mut column_level = [0.0f32; MAX_TILES_X];
-        let mut column_threshold = [0.0f32; MAX_TILES_X];
-        for tx in 0..self.tiles_x {
-            let at = |values: &[u8; MAX_TILES], ty: usize| {
-                values
-                    .get(ty * self.tiles_x + tx)
-                    .copied()
-                    .map_or(0.0, f32::from)
-            };
-            let lerp = |values: &[u8; MAX_TILES]| {
-                at(values, ty0) + fy * (at(values, ty1) - at(values, ty0))
-            };
-            let (l, n) = (lerp(&self.level), lerp(&self.noise));
-            let scaled = noise_factor * n;
-            let margin = if scaled > min_contrast {
-                scaled
-            } else {
-                min_contrast
-            };
-            if let (Some(cl), Some(ct)) = (column_level.get_mut(tx), column_threshold.get_mut(tx)) {
-                // Rounded level, floored threshold, both as a 24.8 fixed point.
-                *cl = l + 0.5;
-                *ct = l + margin;
-            }
+        let ramps = self.row_ramps(y, min_contrast, noise_factor);
+        for segment in ramps.segments(width) {
+            let range = segment.x0..segment.x0 + segment.len;
+            segment
+                .level
+                .fill(level.get_mut(range.clone()).unwrap_or(&mut []));
+            segment
+                .threshold
+                .fill(threshold.get_mut(range).unwrap_or(&mut []));
         }
-        fill_row(&column_level, self.tiles_x, width, level);
-        fill_row(&column_threshold, self.tiles_x, width, threshold);
     }
 
     /// Level at one pixel, interpolated as in [`Background::row`].
@@ -125,40 +155,142 @@ impl Background {
     }
 }
 
-/// Linear interpolation along a row between the values at the tile centres
-/// (pixel `TILE_PX / 2 - 0.5` of each tile), constant beyond the outer ones,
-/// in 24.8 fixed point: one addition a pixel, then the integer part,
-/// clamped to 0..=255.
-fn fill_row(centres: &[f32; MAX_TILES_X], tiles: usize, width: usize, out: &mut [u8]) {
-    const ONE: f32 = 256.0;
-    let to_grey = |fixed: i32| (fixed >> 8).clamp(0, 255) as u8;
-    let fixed = |value: f32| (value * ONE) as i32;
-    let first = centres.first().copied().map_or(0, fixed);
-    let last = centres
-        .get(tiles.saturating_sub(1))
-        .copied()
-        .map_or(first, fixed);
-    let out = out.get_mut(..width).unwrap_or(&mut []);
-    // Up to the first centre (pixel TILE_PX / 2 - 1 is the last before it).
-    let (head, rest) = out.split_at_mut((TILE_PX / 2).min(width));
-    head.fill(to_grey(first));
-    let mut cells = rest.iter_mut();
-    for pair in centres.get(..tiles).unwrap_or(&[]).windows(2) {
-        let (a, b) = match pair {
-            [a, b] => (fixed(*a), fixed(*b)),
-            _ => continue,
-        };
-        // Pixels after centre `a` up to centre `b`: the first is half a
-        // pixel past `a`.
-        let step = (b - a) / TILE_PX as i32;
-        let mut value = a + step / 2;
-        for cell in cells.by_ref().take(TILE_PX) {
-            *cell = to_grey(value);
-            value += step;
+/// A row's level and threshold at the tile centres (pixel `TILE_PX / 2 -
+/// 0.5` of each tile), from [`Background::row_ramps`].
+#[derive(Debug, Clone, Default)]
+pub struct RowRamps {
+    tiles: usize,
+    /// The level at each centre, rounded (+0.5), 24.8 fixed point.
+    level: [i32; MAX_TILES_X],
+    /// The threshold at each centre, 24.8 fixed point.
+    threshold: [i32; MAX_TILES_X],
+}
+
+/// One stretch of a row: `len` pixels from `x0`, over which the level and
+/// the threshold each step linearly.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Segment {
+    /// First pixel.
+    pub x0: usize,
+    /// Pixels.
+    pub len: usize,
+    /// The background level, rounded.
+    pub level: Ramp,
+    /// The threshold, floored.
+    pub threshold: Ramp,
+}
+
+/// Grey levels stepping linearly in 24.8 fixed point: the first pixel's
+/// `start`, then `step` more each pixel; the integer part, clamped to
+/// 0..=255. One addition a pixel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Ramp {
+    start: i32,
+    step: i32,
+}
+
+impl Ramp {
+    fn grey(fixed: i32) -> u8 {
+        (fixed >> 8).clamp(0, 255) as u8
+    }
+
+    /// The `len` values into `out` (as many as it holds).
+    pub fn fill(&self, out: &mut [u8]) {
+        let mut value = self.start;
+        for cell in out.iter_mut() {
+            *cell = Self::grey(value);
+            value += self.step;
         }
     }
-    for cell in cells {
-        *cell = to_grey(last);
+}
+
+impl RowRamps {
+    /// The row's segments over `width` pixels, left to right (see
+    /// [`RowRamps::segment`]).
+    pub fn segments(&self, width: usize) -> impl Iterator<Item = Segment> + '_ {
+        (0..self.segment_count()).filter_map(move |k| self.segment(k, width))
+    }
+
+    /// Segments in a row (some may be empty).
+    pub fn segment_count(&self) -> usize {
+        self.tiles + 1
+    }
+
+    /// The columns `x0..x1` of segment `k` in a row of `width` pixels
+    /// (as [`RowRamps::segment`], without its ramps).
+    pub fn segment_columns(&self, k: usize, width: usize) -> (usize, usize) {
+        let head = TILE_PX / 2;
+        let pairs = self.tiles.saturating_sub(1);
+        let (x0, x1) = match k {
+            0 => (0, head),
+            k if k <= pairs => (head + (k - 1) * TILE_PX, head + k * TILE_PX),
+            _ => (head + pairs * TILE_PX, width),
+        };
+        (x0.min(width), x1.min(width))
+    }
+
+    /// A threshold no pixel of segment `k` has a lower one than: the lower
+    /// of its two centres' (the ramp between them stays between them).
+    pub fn least_threshold(&self, k: usize) -> u8 {
+        let at = |t: usize| self.threshold.get(t).copied().unwrap_or(0);
+        let last = self.tiles.saturating_sub(1);
+        let fixed = match k {
+            0 => at(0),
+            k if k <= last => at(k - 1).min(at(k)),
+            _ => at(last),
+        };
+        Ramp::grey(fixed)
+    }
+
+    /// Segment `k` of a row of `width` pixels (`None` past the row's end
+    /// or when empty): up to the first tile centre (`k` = 0) and beyond the
+    /// last one (`k` = tiles) the value is the outer centre's; in between
+    /// it steps from centre `k - 1` to centre `k` (`TILE_PX` pixels, the
+    /// first half a pixel past the first centre).
+    pub fn segment(&self, k: usize, width: usize) -> Option<Segment> {
+        let head = (TILE_PX / 2).min(width);
+        let pairs = self.tiles.saturating_sub(1);
+        let at = |values: &[i32; MAX_TILES_X], t: usize| values.get(t).copied().unwrap_or(0);
+        let constant = |values: &[i32; MAX_TILES_X], t: usize| Ramp {
+            start: at(values, t),
+            step: 0,
+        };
+        let between = |values: &[i32; MAX_TILES_X], t: usize| {
+            let (a, b) = (at(values, t), at(values, t + 1));
+            let step = (b - a) / TILE_PX as i32;
+            Ramp {
+                start: a + step / 2,
+                step,
+            }
+        };
+        let segment = if k == 0 {
+            Segment {
+                x0: 0,
+                len: head,
+                level: constant(&self.level, 0),
+                threshold: constant(&self.threshold, 0),
+            }
+        } else if k <= pairs {
+            let x0 = (head + (k - 1) * TILE_PX).min(width);
+            Segment {
+                x0,
+                len: TILE_PX.min(width - x0),
+                level: between(&self.level, k - 1),
+                threshold: between(&self.threshold, k - 1),
+            }
+        } else if k == pairs + 1 {
+            let x0 = (head + pairs * TILE_PX).min(width);
+            let last = self.tiles.saturating_sub(1);
+            Segment {
+                x0,
+                len: width - x0,
+                level: constant(&self.level, last),
+                threshold: constant(&self.threshold, last),
+            }
+        } else {
+            return None;
+        };
+        (segment.len > 0).then_some(segment)
     }
 }
 
@@ -189,20 +321,47 @@ fn tile_statistics(image: &GrayImage<'_>, tx: usize, ty: usize) -> (u8, u8) {
     let x1 = (x0 + TILE_PX).min(image.width());
     let y0 = ty * TILE_PX;
     let y1 = (y0 + TILE_PX).min(image.height());
+    // The sample, gathered once (a quarter of a tile: 64 pixels), with
+    // the moments of all of it.
+    let mut sample = [0u8; TILE_PX * TILE_PX / 4];
+    let mut taken = 0;
+    let mut all = Moments::default();
+    for (k, y) in (y0..y1).step_by(2).enumerate() {
+        // Even rows from the tile's first pixel, odd rows from its second:
+        // bytes 0 and 2, or 1 and 3, of each word.
+        let odd = k % 2;
+        let row = image.row(y).get(x0..x1).unwrap_or(&[]);
+        let words = row.chunks_exact(4);
+        let rest = words.remainder();
+        let shift = 8 * odd as u32;
+        let mut keep = |p: u8| {
+            if let Some(cell) = sample.get_mut(taken) {
+                *cell = p;
+                all.add(u32::from(p));
+                taken += 1;
+            }
+        };
+        for word in words {
+            let bytes = <[u8; 4]>::try_from(word).map_or(0, u32::from_le_bytes) >> shift;
+            keep(bytes as u8);
+            keep((bytes >> 16) as u8);
+        }
+        for &p in rest.iter().skip(odd).step_by(2) {
+            keep(p);
+        }
+    }
+    let sample = sample.get(..taken).unwrap_or(&[]);
     let moments_below = |ceiling: f32| {
         let ceiling = if ceiling >= 255.0 { 255 } else { ceiling as u8 };
         let mut moments = Moments::default();
-        for (k, y) in (y0..y1).step_by(2).enumerate() {
-            let start = (x0 + k % 2).min(x1);
-            for &p in image.row(y).get(start..x1).unwrap_or(&[]).iter().step_by(2) {
-                if p <= ceiling {
-                    moments.add(u32::from(p));
-                }
+        for &p in sample {
+            if p <= ceiling {
+                moments.add(u32::from(p));
             }
         }
         moments.mean_and_deviation()
     };
-    let (mean, deviation) = moments_below(255.0);
+    let (mean, deviation) = all.mean_and_deviation();
     let (mean, deviation) = moments_below(mean + deviation);
     let (level, noise) = moments_below(mean + 3.0 * deviation + 1.0);
     (
@@ -296,6 +455,43 @@ mod tests {
                     "({x}, {y}): {grey} vs {exact}"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn no_pixel_of_a_segment_has_a_threshold_below_its_least() {
+        let mut state = 9u64;
+        for trial in 0..300 {
+            let width: usize = 1 + trial % 140;
+            let tiles = width.div_ceil(TILE_PX);
+            let mut ramps = RowRamps {
+                tiles,
+                level: [0; MAX_TILES_X],
+                threshold: [0; MAX_TILES_X],
+            };
+            for t in ramps.threshold.iter_mut().take(tiles) {
+                *t = (crate::test_rng::splitmix(&mut state) * 300.0 * 256.0) as i32 - 20 * 256;
+            }
+            let mut threshold = [0u8; 140];
+            let mut covered = 0;
+            for k in 0..ramps.segment_count() {
+                let (x0, x1) = ramps.segment_columns(k, width);
+                if let Some(segment) = ramps.segment(k, width) {
+                    assert_eq!((segment.x0, segment.x0 + segment.len), (x0, x1));
+                    segment.threshold.fill(&mut threshold[x0..x1]);
+                    let least = ramps.least_threshold(k);
+                    assert!(
+                        threshold[x0..x1].iter().all(|&t| t >= least),
+                        "width {width} segment {k}: {:?} under {least}",
+                        &threshold[x0..x1]
+                    );
+                } else {
+                    assert_eq!(x0, x1, "width {width} segment {k}");
+                }
+                assert_eq!(x0, covered, "width {width}: segments in order");
+                covered = x1;
+            }
+            assert_eq!(covered, width);
         }
     }
 

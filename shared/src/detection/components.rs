@@ -111,13 +111,11 @@ pub enum ComponentError {
 struct Slot {
     /// Union-find parent (itself for a root).
     parent: u16,
-    in_use: bool,
     sums: ComponentSums,
 }
 
 const FREE: Slot = Slot {
     parent: NONE,
-    in_use: false,
     sums: ComponentSums {
         area: 0,
         sx: 0,
@@ -136,19 +134,42 @@ const FREE: Slot = Slot {
     },
 };
 
+/// A set of slots, one bit each.
+type SlotSet = u128;
+const _: () = assert!(MAX_OPEN_COMPONENTS <= SlotSet::BITS as usize);
+
+/// Column spans a row is labelled over, at most (a row's 16-pixel
+/// segments and its two ends; more are merged into the last).
+pub const MAX_SPANS: usize = MAX_WIDTH_PX / 16 + 2;
+
+/// Half-open column spans `(start, end)`, in order.
+type Spans = heapless::Vec<(u16, u16), MAX_SPANS>;
+
+/// One row's labels and the spans they were written over.
+#[derive(Debug, Clone)]
+struct RowLabels {
+    /// Label of each pixel (none outside `spans`).
+    cells: [u16; MAX_WIDTH_PX],
+    spans: Spans,
+}
+
+const CLEAR_ROW: RowLabels = RowLabels {
+    cells: [NONE; MAX_WIDTH_PX],
+    spans: Spans::new(),
+};
+
 /// The labeller's working memory: two rows of labels and the slot table
 /// (2 KiB + 8.25 KiB).
 #[derive(Debug, Clone)]
 pub struct Labeller {
-    /// Roots of the row above (none outside `previous_span`).
-    previous: [u16; MAX_WIDTH_PX],
-    /// The row being labelled (none outside the pixels labelled so far).
-    current: [u16; MAX_WIDTH_PX],
-    /// First and last labelled column of `previous` (first > last: none).
-    previous_span: (usize, usize),
+    /// The row above (its roots) and the row being labelled; which is
+    /// which flips from row to row, so that no row is copied.
+    rows: [RowLabels; 2],
+    /// `rows[1]` is the row above.
+    flip: bool,
     slots: [Slot; MAX_OPEN_COMPONENTS],
     /// Slots in use.
-    open: usize,
+    open: SlotSet,
     width: usize,
     row: u16,
 }
@@ -157,9 +178,8 @@ impl Labeller {
     /// A labeller for rows of `width` pixels (at most [`MAX_WIDTH_PX`]).
     pub fn new(width: usize) -> Self {
         Self {
-            previous: [NONE; MAX_WIDTH_PX],
-            current: [NONE; MAX_WIDTH_PX],
-            previous_span: (usize::MAX, 0),
+            rows: [CLEAR_ROW; 2],
+            flip: false,
             slots: [FREE; MAX_OPEN_COMPONENTS],
             open: 0,
             width: width.min(MAX_WIDTH_PX),
@@ -173,63 +193,135 @@ impl Labeller {
     pub fn push_row(
         &mut self,
         weights: &[u8],
+        closed: impl FnMut(&ComponentSums),
+    ) -> Result<(), ComponentError> {
+        self.push_spans(weights, &[(0, weights.len())], closed)
+    }
+
+    /// Labels the next row over the half-open column `spans` only (in
+    /// order, not overlapping): every pixel outside them is background and
+    /// its weight is not read. A frame's marks cover a few of a row's
+    /// segments; the rest, which the caller has shown to hold no pixel
+    /// above its threshold, costs nothing here.
+    pub fn push_spans(
+        &mut self,
+        weights: &[u8],
+        spans: &[(usize, usize)],
         mut closed: impl FnMut(&ComponentSums),
     ) -> Result<(), ComponentError> {
         let y = self.row;
+        let columns = self.width.min(weights.len());
+        self.current().spans.clear();
         let mut left = NONE;
-        let (mut first, mut last) = (usize::MAX, 0);
-        for (x, &weight) in weights.iter().enumerate().take(self.width) {
-            if weight == 0 {
-                left = NONE;
+        let mut last_end = usize::MAX;
+        for &(start, end) in spans {
+            let (start, end) = (start.min(columns), end.min(columns));
+            if start >= end {
                 continue;
             }
-            first = first.min(x);
-            last = x;
-            // Neighbours already labelled: left, and the three above.
-            let above = |dx: isize| -> u16 {
-                x.checked_add_signed(dx)
-                    .and_then(|i| self.previous.get(i).copied())
-                    .unwrap_or(NONE)
-            };
-            let neighbours = [left, above(-1), above(0), above(1)];
-            let mut root = NONE;
-            for label in neighbours {
-                if label == NONE {
+            // A span that does not continue the last one starts with no
+            // left neighbour.
+            if start != last_end {
+                left = NONE;
+            }
+            last_end = end;
+            self.note_span(start, end);
+            for (x, &weight) in weights.iter().enumerate().take(end).skip(start) {
+                if weight == 0 {
+                    left = NONE;
                     continue;
                 }
-                let other = self.find(label);
-                root = if root == NONE {
-                    other
-                } else {
-                    self.union(root, other)
+                // Neighbours already labelled: left, and the three above.
+                let above = |dx: isize| -> u16 {
+                    x.checked_add_signed(dx)
+                        .and_then(|i| self.previous().cells.get(i).copied())
+                        .unwrap_or(NONE)
                 };
-            }
-            if root == NONE {
-                root = self
-                    .allocate()
-                    .ok_or(ComponentError::TooManyOpen { row: y })?;
-            }
-            let pixel = ComponentSums::pixel(x as u16, y, weight);
-            if let Some(slot) = self.slots.get_mut(usize::from(root)) {
-                if slot.sums.area == 0 {
-                    slot.sums = pixel;
-                } else {
-                    slot.sums.absorb(&pixel);
+                let neighbours = [left, above(-1), above(0), above(1)];
+                let mut root = NONE;
+                for label in neighbours {
+                    if label == NONE {
+                        continue;
+                    }
+                    let other = self.find(label);
+                    root = if root == NONE {
+                        other
+                    } else {
+                        self.union(root, other)
+                    };
                 }
+                if root == NONE {
+                    root = self
+                        .allocate()
+                        .ok_or(ComponentError::TooManyOpen { row: y })?;
+                }
+                let pixel = ComponentSums::pixel(x as u16, y, weight);
+                if let Some(slot) = self.slots.get_mut(usize::from(root)) {
+                    if slot.sums.area == 0 {
+                        slot.sums = pixel;
+                    } else {
+                        slot.sums.absorb(&pixel);
+                    }
+                }
+                if let Some(cell) = self.current().cells.get_mut(x) {
+                    *cell = root;
+                }
+                left = root;
             }
-            if let Some(cell) = self.current.get_mut(x) {
-                *cell = root;
-            }
-            left = root;
         }
-        self.close_row((first, last), &mut closed);
+        self.close_row(&mut closed);
         self.row = self.row.saturating_add(1);
         Ok(())
     }
 
     /// Hands on every component still open (the image has no more rows).
     pub fn finish(&mut self, mut closed: impl FnMut(&ComponentSums)) {
-        self.close_row((usize::MAX, 0), &mut closed);
+        self.current().spans.clear();
+        self.close_row(&mut closed);
+    }
+
+    /// Records that the row is labelled over `start..end` (joined to the
+    /// last span when it continues it or when there is no room).
+    fn note_span(&mut self, start: usize, end: usize) {
+        let (start, end) = (start as u16, end as u16);
+        let spans = &mut self.current().spans;
+        let full = spans.is_full();
+        if let Some(last) = spans.last_mut() {
+            if last.1 == start || full {
+                last.1 = end;
+                return;
+            }
+        }
+        let _ = spans.push((start, end));
+    }
+
+    /// The row above.
+    fn previous(&self) -> &RowLabels {
+        let [a, b] = &self.rows;
+        if self.flip {
+            b
+        } else {
+            a
+        }
+    }
+
+    fn previous_mut(&mut self) -> &mut RowLabels {
+        let [a, b] = &mut self.rows;
+        if self.flip {
+            b
+        } else {
+            a
+        }
+    }
+
+    /// The row being labelled.
+    fn current(&mut self) -> &mut RowLabels {
+        let [a, b] = &mut self.rows;
+        if self.flip {
+            a
+        } else {
+            b
+        }
     }
 
     fn parent(&self, label: u16) -> u16 {
@@ -282,63 +374,64 @@ impl Labeller {
         keep
     }
 
+    /// The lowest free slot, taken.
     fn allocate(&mut self) -> Option<u16> {
-        let (index, slot) = self
-            .slots
-            .iter_mut()
-            .enumerate()
-            .find(|(_, slot)| !slot.in_use)?;
+        let index = (!self.open).trailing_zeros() as usize;
+        let slot = self.slots.get_mut(index)?;
         *slot = Slot {
             parent: index as u16,
-            in_use: true,
             sums: ComponentSums::default(),
         };
-        self.open += 1;
+        self.open |= 1 << index;
         Some(index as u16)
     }
 
-    /// After a row whose labelled pixels lie in `span` (first, last): their
-    /// labels resolved to their roots; components that reach none of them
-    /// handed on; every slot no label refers to any more freed; the row
-    /// kept as the next one's row above, and the scratch row cleared.
-    fn close_row(&mut self, span: (usize, usize), closed: &mut impl FnMut(&ComponentSums)) {
-        let mut live = [false; MAX_OPEN_COMPONENTS];
-        let (first, last) = span;
-        for x in first..=last.min(self.width.saturating_sub(1)) {
-            let label = self.current.get(x).copied().unwrap_or(NONE);
-            if label == NONE {
-                continue;
-            }
-            let root = self.find(label);
-            if let Some(cell) = self.current.get_mut(x) {
-                *cell = root;
-            }
-            if let Some(flag) = live.get_mut(usize::from(root)) {
-                *flag = true;
-            }
-        }
-        if self.open > 0 {
-            for (index, slot) in self.slots.iter_mut().enumerate() {
-                if !slot.in_use || live.get(index).copied().unwrap_or(false) {
+    /// After a row labelled over `current_spans`: its labels resolved to
+    /// their roots; components that reach none of them handed on (in slot
+    /// order); every slot no label refers to any more freed; the row kept
+    /// as the next one's row above, and the scratch row cleared.
+    fn close_row(&mut self, closed: &mut impl FnMut(&ComponentSums)) {
+        let mut live: SlotSet = 0;
+        for k in 0..self.current().spans.len() {
+            let Some(&(start, end)) = self.current().spans.get(k) else {
+                break;
+            };
+            for x in usize::from(start)..usize::from(end) {
+                let label = self.current().cells.get(x).copied().unwrap_or(NONE);
+                if label == NONE {
                     continue;
                 }
+                let root = self.find(label);
+                if let Some(cell) = self.current().cells.get_mut(x) {
+                    *cell = root;
+                }
+                if usize::from(root) < MAX_OPEN_COMPONENTS {
+                    live |= 1 << root;
+                }
+            }
+        }
+        let mut ending = self.open & !live;
+        while ending != 0 {
+            let index = ending.trailing_zeros() as usize;
+            ending &= ending - 1;
+            if let Some(slot) = self.slots.get_mut(index) {
                 if usize::from(slot.parent) == index && slot.sums.area > 0 {
                     closed(&slot.sums);
                 }
                 *slot = FREE;
-                self.open = self.open.saturating_sub(1);
             }
+            self.open &= !(1 << index);
         }
         // The row above is done with: clear it where it held labels, and it
         // becomes the next row's scratch.
-        let (old_first, old_last) = self.previous_span;
-        for x in old_first..=old_last.min(self.width.saturating_sub(1)) {
-            if let Some(cell) = self.previous.get_mut(x) {
-                *cell = NONE;
+        let above = self.previous_mut();
+        for &(start, end) in above.spans.iter() {
+            if let Some(cells) = above.cells.get_mut(usize::from(start)..usize::from(end)) {
+                cells.fill(NONE);
             }
         }
-        core::mem::swap(&mut self.previous, &mut self.current);
-        self.previous_span = span;
+        above.spans.clear();
+        self.flip = !self.flip;
     }
 }
 

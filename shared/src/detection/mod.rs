@@ -40,9 +40,9 @@ use heapless::Vec;
 
 use coverage::Coverage;
 
-pub use background::Background;
+pub use background::{Background, RowRamps};
 pub use blob::{Blob, MarkShape, Refusal};
-pub use components::{ComponentError, ComponentSums, Labeller, MAX_OPEN_COMPONENTS};
+pub use components::{ComponentError, ComponentSums, Labeller, MAX_OPEN_COMPONENTS, MAX_SPANS};
 pub use image::{GrayImage, ImageError, MAX_HEIGHT_PX, MAX_WIDTH_PX};
 
 // The working memory the docs state, held at compile time.
@@ -206,29 +206,59 @@ impl Detector {
         // At least one grey level: a weight of 0 means background.
         let min_contrast = f32::from(self.settings.min_contrast.max(1));
         let noise_factor = self.settings.noise_factor;
+        let mut spans: Vec<(usize, usize), MAX_SPANS> = Vec::new();
+        let mut ramps = RowRamps::default();
         for y in 0..height {
-            background.thresholds(
-                y,
-                width,
-                min_contrast,
-                noise_factor,
-                &mut self.level,
-                &mut self.threshold,
-            );
+            background.fill_row_ramps(y, min_contrast, noise_factor, &mut ramps);
             let row = image.row(y);
-            let limits = self.level.iter().zip(self.threshold.iter());
-            for (weight, (&pixel, (&level, &threshold))) in
-                self.weights.iter_mut().zip(row.iter().zip(limits))
-            {
-                // Above the threshold is at least one grey level above the level.
-                *weight = if pixel > threshold {
-                    pixel.saturating_sub(level).max(1)
-                } else {
-                    0
+            spans.clear();
+            // Only the segments with a pixel above their least threshold are
+            // weighed and labelled: most of a frame is background.
+            for k in 0..ramps.segment_count() {
+                let (x0, x1) = ramps.segment_columns(k, width);
+                let Some(pixels) = row.get(x0..x1) else {
+                    continue;
                 };
+                if !any_above(pixels, ramps.least_threshold(k)) {
+                    continue;
+                }
+                let (Some(segment), Some(weights)) =
+                    (ramps.segment(k, width), self.weights.get_mut(x0..x1))
+                else {
+                    continue;
+                };
+                let len = segment.len;
+                segment
+                    .level
+                    .fill(self.level.get_mut(..len).unwrap_or(&mut []));
+                segment
+                    .threshold
+                    .fill(self.threshold.get_mut(..len).unwrap_or(&mut []));
+                let limits = self.level.iter().zip(self.threshold.iter());
+                for (weight, (&pixel, (&level, &threshold))) in
+                    weights.iter_mut().zip(pixels.iter().zip(limits))
+                {
+                    // Above the threshold is at least one grey level above the level.
+                    *weight = if pixel > threshold {
+                        pixel.saturating_sub(level).max(1)
+                    } else {
+                        0
+                    };
+                }
+                let (start, end) = (segment.x0, segment.x0 + segment.len);
+                match spans.last_mut() {
+                    Some(last) if last.1 == start => last.1 = end,
+                    _ => {
+                        if spans.push((start, end)).is_err() {
+                            if let Some(last) = spans.last_mut() {
+                                last.1 = end;
+                            }
+                        }
+                    }
+                }
             }
             labeller
-                .push_row(self.weights.get(..width).unwrap_or(&[]), &mut take)
+                .push_spans(self.weights.get(..width).unwrap_or(&[]), &spans, &mut take)
                 .map_err(|ComponentError::TooManyOpen { row }| {
                     DetectionError::TooManyComponents { row }
                 })?;
@@ -257,6 +287,33 @@ impl Detector {
 /// vision-check`: the reference 0.022 px towards the disc centre, the
 /// gripper's marks 0.074 px apart, each). Contrast within `floor_grey` of
 /// the background (texture, noise) counts nothing.
+/// Some pixel of `pixels` is brighter than `ceiling`: four at a time in
+/// a 32-bit word (no carry crosses a byte: each byte's low seven bits plus
+/// at most 127), then the rest one by one.
+fn any_above(pixels: &[u8], ceiling: u8) -> bool {
+    const LOW: u32 = 0x7f7f_7f7f;
+    const HIGH: u32 = 0x8080_8080;
+    const ONES: u32 = 0x0101_0101;
+    let words = pixels.chunks_exact(4);
+    let rest = words.remainder();
+    let found = if ceiling < 0x80 {
+        // Above: the high bit set, or the low bits past the ceiling.
+        let lift = ONES * u32::from(0x7f - ceiling);
+        words.fold(0, |any, word| {
+            let x = <[u8; 4]>::try_from(word).map_or(0, u32::from_le_bytes);
+            any | (((x & LOW) + lift) | x)
+        })
+    } else {
+        // Above: the high bit set and the low bits past the ceiling's.
+        let lift = ONES * u32::from(0xff - ceiling);
+        words.fold(0, |any, word| {
+            let x = <[u8; 4]>::try_from(word).map_or(0, u32::from_le_bytes);
+            any | (((x & LOW) + lift) & x)
+        })
+    };
+    found & HIGH != 0 || rest.iter().any(|&p| p > ceiling)
+}
+
 fn window_coverage(
     image: &GrayImage<'_>,
     background: &Background,
@@ -277,12 +334,10 @@ fn window_coverage(
     // The component's own centre aims the lines to the sides.
     let n = sums.area.max(1) as f32;
     let (cx, cy) = (sums.sx as f32 / n, sums.sy as f32 / n);
-    let mut brightest = 0.0f32;
-    for y in y0..=y1 {
-        for x in x0..=x1 {
-            brightest = brightest.max(pixel(x, y));
-        }
-    }
+    let brightest = (y0..=y1)
+        .filter_map(|y| image.row(y).get(x0..=x1)?.iter().copied().max())
+        .max()
+        .map_or(0.0, f32::from);
     // Moments about the component's centre keep the f32 sums exact enough.
     let mut coverage = Coverage::about([cx, cy]);
     for y in y0..=y1 {
@@ -292,7 +347,7 @@ fn window_coverage(
             if above <= 0.0 {
                 continue;
             }
-            let share = above / (brightest - background - floor_grey).max(1.0);
+            let share = above / larger(brightest - background - floor_grey, 1.0);
             coverage.add(x as f32, y as f32, share);
         }
     }
@@ -387,7 +442,7 @@ impl WindowSides {
             reach(dx, cx, self.x0, self.x1),
             reach(dy, cy, self.y0, self.y1),
         );
-        let t = tx.min(ty);
+        let t = lesser(tx, ty);
         if !t.is_finite() {
             return 0.25 * (top + bottom + left + right);
         }
@@ -424,14 +479,33 @@ impl WindowSides {
                 (Some(x), Some(y)) if y < image.height() => at(x, y),
                 _ => None,
             };
-            beyond.map_or(edge, |b| b.min(edge))
+            beyond.map_or(edge, |b| lesser(b, edge))
         } else {
-            side.min(edge)
+            lesser(side, edge)
         }
     }
 }
 
 /// The median of sorted values (the mean of the middle two for an even count).
+/// The lesser of two numbers, neither NaN, as `f32::min` gives it (which
+/// is a library call on the Cortex-M4F).
+fn lesser(a: f32, b: f32) -> f32 {
+    if b < a {
+        b
+    } else {
+        a
+    }
+}
+
+/// The larger of two numbers, neither NaN, as `f32::max` gives it.
+fn larger(a: f32, b: f32) -> f32 {
+    if b > a {
+        b
+    } else {
+        a
+    }
+}
+
 fn median(sorted: &[u8]) -> f32 {
     let n = sorted.len();
     let at = |i: usize| sorted.get(i).copied().map_or(0.0, f32::from);

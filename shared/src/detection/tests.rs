@@ -269,3 +269,27 @@ fn a_mark_on_a_dark_backing_or_beside_a_dark_band_keeps_its_centre() {
         "banded marks shifted by {mean_dx} px on average"
     );
 }
+
+#[test]
+fn the_word_scan_finds_exactly_the_pixels_above_the_ceiling() {
+    let mut state = 17u64;
+    for ceiling in 0..=255u8 {
+        for trial in 0..200 {
+            let len = 1 + trial % 19;
+            // Pixels near the ceiling, some at it, some one above.
+            let pixels: std::vec::Vec<u8> = (0..len)
+                .map(|_| {
+                    let r = crate::test_rng::splitmix(&mut state);
+                    let spread = (r * 9.0) as i32 - 6;
+                    (i32::from(ceiling) + spread).clamp(0, 255) as u8
+                })
+                .collect();
+            let expected = pixels.iter().any(|&p| p > ceiling);
+            assert_eq!(
+                super::any_above(&pixels, ceiling),
+                expected,
+                "ceiling {ceiling}: {pixels:?}"
+            );
+        }
+    }
+}
