@@ -402,22 +402,31 @@ impl RimFinder {
     ) -> PassSums {
         let (outer, inner) = edges;
         let mut sums = PassSums::default();
+        let weight = |residual: f32| {
+            let u = residual / cutoff?;
+            (u.abs() < 1.0).then_some((1.0 - u * u) * (1.0 - u * u))
+        };
         for pixel in self.pixels.pass() {
             // A sector without levels this frame is left out.
-            let (Some(m), Some(level)) = (
-                model_of(&pixel, outer, inner, width),
-                levels.get(pixel.sector).copied().flatten(),
-            ) else {
+            let Some(level) = levels.get(pixel.sector).copied().flatten() else {
+                continue;
+            };
+            // A pixel off both ramps (most) is its zone's level and no
+            // more: no model to build.
+            if let Some(zone_level) = level.get(usize::from(pixel.zone)) {
+                let residual = pixel.value - zone_level;
+                sums.count_residual(residual);
+                if let Some(w) = weight(residual) {
+                    sums.add_level_only(pixel.sector, usize::from(pixel.zone), w, residual);
+                }
+                continue;
+            }
+            let Some(m) = PixelModel::at(outer, inner, pixel.x, pixel.y, width) else {
                 continue;
             };
             let residual = pixel.value - level.dot(&m.basis);
             sums.count_residual(residual);
-            let Some(cutoff) = cutoff else { continue };
-            let u = residual / cutoff;
-            if u.abs() >= 1.0 {
-                continue;
-            }
-            let w = (1.0 - u * u) * (1.0 - u * u);
+            let Some(w) = weight(residual) else { continue };
             match m.zone() {
                 // Off both ramps a pixel's row is zero: it only tells its
                 // zone's level (most pixels).
@@ -516,17 +525,16 @@ impl RimFinder {
                     needed: settings.min_sectors,
                 });
             }
+            // (The start's zones were kept with its edges.)
             let (turn, edges) = match start_edges.take() {
                 Some(ready) => ready,
                 None => {
                     let turn = libm::sincos(geometry.ellipse.angle_rad);
-                    (
-                        turn,
-                        geometry.edges(turn, origin).ok_or(RimError::Degenerate)?,
-                    )
+                    let edges = geometry.edges(turn, origin).ok_or(RimError::Degenerate)?;
+                    keep_zones(&mut self.pixels, &geometry, turn, &edges, width);
+                    (turn, edges)
                 }
             };
-            keep_zones(&mut self.pixels, &geometry, turn, &edges, width);
             // The residuals' scale: the last pass's, or a pass of its own
             // the first time.
             let sigma = match scale {

@@ -249,7 +249,7 @@ pub struct PixelModel {
 
 impl PixelModel {
     /// The pixel at `(x, y)` against the band's `outer` and `inner` edges.
-    #[inline]
+    #[inline(always)]
     pub fn at(outer: &EdgeConic, inner: &EdgeConic, x: f32, y: f32, width: f32) -> Option<Self> {
         let half = 0.5 * width;
         let (a_outer, slope_outer, o) = share(outer.side(x, y, half)?, width);
