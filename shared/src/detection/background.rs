@@ -199,7 +199,7 @@ impl Ramp {
         let mut value = self.start;
         for cell in out.iter_mut() {
             *cell = Self::grey(value);
-            value += self.step;
+            value = value.saturating_add(self.step);
         }
     }
 }

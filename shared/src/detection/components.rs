@@ -158,8 +158,8 @@ const CLEAR_ROW: RowLabels = RowLabels {
     spans: Spans::new(),
 };
 
-/// The labeller's working memory: two rows of labels and the slot table
-/// (2 KiB + 8.25 KiB).
+/// The labeller's working memory: two rows of labels with their spans and
+/// the slot table (2.3 KiB + 8.25 KiB).
 #[derive(Debug, Clone)]
 pub struct Labeller {
     /// The row above (its roots) and the row being labelled; which is
@@ -211,7 +211,14 @@ impl Labeller {
     ) -> Result<(), ComponentError> {
         let y = self.row;
         let columns = self.width.min(weights.len());
-        self.current().spans.clear();
+        // A row left half labelled by an error leaves no label behind.
+        let row = self.current();
+        for &(start, end) in row.spans.iter() {
+            if let Some(cells) = row.cells.get_mut(usize::from(start)..usize::from(end)) {
+                cells.fill(NONE);
+            }
+        }
+        row.spans.clear();
         let mut left = NONE;
         let mut last_end = usize::MAX;
         for &(start, end) in spans {
@@ -281,14 +288,15 @@ impl Labeller {
     }
 
     /// Records that the row is labelled over `start..end` (joined to the
-    /// last span when it continues it or when there is no room).
+    /// last span when it continues or overlaps it, or when there is no
+    /// room: then the span covers both, whatever their order).
     fn note_span(&mut self, start: usize, end: usize) {
         let (start, end) = (start as u16, end as u16);
         let spans = &mut self.current().spans;
         let full = spans.is_full();
         if let Some(last) = spans.last_mut() {
-            if last.1 == start || full {
-                last.1 = end;
+            if full || (start <= last.1 && end >= last.0) {
+                *last = (last.0.min(start), last.1.max(end));
                 return;
             }
         }
@@ -474,6 +482,41 @@ mod tests {
         assert_eq!((u.sx, u.sy), (18, 12));
         assert_eq!(u.sw, 90);
         assert_eq!(found[1].area, 1);
+    }
+
+    /// Labels `rows` rows of `weights` over `spans` in each, or whole.
+    fn label_over(
+        weights: &[u8],
+        rows: usize,
+        spans: Option<&[(usize, usize)]>,
+    ) -> Vec<ComponentSums> {
+        let mut labeller = Labeller::new(weights.len());
+        let mut out = Vec::new();
+        for _ in 0..rows {
+            match spans {
+                Some(spans) => labeller.push_spans(weights, spans, |c| out.push(*c)),
+                None => labeller.push_row(weights, |c| out.push(*c)),
+            }
+            .unwrap();
+        }
+        labeller.finish(|c| out.push(*c));
+        out.sort_by_key(|c| (c.y_min, c.x_min));
+        out
+    }
+
+    #[test]
+    fn spans_out_of_order_and_past_the_room_label_as_whole_rows_do() {
+        // 34 one-pixel spans (the room is MAX_SPANS), then one before them all.
+        let mut spans: Vec<(usize, usize)> = (1..=34).map(|k| (5 * k, 5 * k + 1)).collect();
+        spans.push((0, 1));
+        let mut weights = [0u8; 200];
+        for &(start, end) in &spans {
+            weights[start..end].fill(1);
+        }
+        let whole = label_over(&weights, 3, None);
+        assert_eq!(label_over(&weights, 3, Some(&spans)), whole);
+        assert_eq!(whole.len(), 35);
+        assert!(whole.iter().all(|c| c.area == 3));
     }
 
     #[test]

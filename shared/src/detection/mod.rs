@@ -23,8 +23,9 @@
 //! disc, over the pixels of its dark band.
 //!
 //! Working memory of a [`Detector`]: [`Detector::WORKING_MEMORY_BYTES`],
-//! 14,144 bytes for images up to 512 x 512 (held within 16 KiB at compile
-//! time); the image itself is borrowed, not copied.
+//! 14,424 bytes on the Cortex-M4F for images up to 512 x 512 (held within
+//! 16 KiB at compile time), and a row's spans and ramps (under 1 KiB) on
+//! the stack; the image itself is borrowed, not copied.
 
 pub mod background;
 pub mod blob;
@@ -268,25 +269,6 @@ impl Detector {
     }
 }
 
-/// The coverage of a mark ([`Coverage`]: its centre and how lopsided it
-/// is) from every pixel of its bounding box grown by one, each weighted by
-/// the share of it the mark covers. The component holds
-/// only the pixels above the threshold; the edge pixels that the mark covers
-/// by less than the threshold's share are missing from it, on whichever side
-/// the mark's sub-pixel position puts more of them, which biases its
-/// centroid by several hundredths of a pixel. Here they count.
-///
-/// A pixel's share is its contrast over the mark's, `(I - B) / (M - B)`,
-/// with `M` the window's brightest pixel and `B` the background beside the
-/// pixel ([`WindowSides::background_towards`]). The tiles' smooth level
-/// would not do: a mark on a dark backing (the gripper's bar), beside a dark
-/// band (the disc's rim) or near the edge of the part's body lies on a step,
-/// and its edge pixels on the dark side would count too little, the bright
-/// side's background too much, pulling the centre across the step by up to
-/// a tenth of a pixel in every frame alike (measured by `host-sim
-/// vision-check`: the reference 0.022 px towards the disc centre, the
-/// gripper's marks 0.074 px apart, each). Contrast within `floor_grey` of
-/// the background (texture, noise) counts nothing.
 /// Some pixel of `pixels` is brighter than `ceiling`: four at a time in
 /// a 32-bit word (no carry crosses a byte: each byte's low seven bits plus
 /// at most 127), then the rest one by one.
@@ -314,6 +296,25 @@ fn any_above(pixels: &[u8], ceiling: u8) -> bool {
     found & HIGH != 0 || rest.iter().any(|&p| p > ceiling)
 }
 
+/// The coverage of a mark ([`Coverage`]: its centre and how lopsided it
+/// is) from every pixel of its bounding box grown by one, each weighted by
+/// the share of it the mark covers. The component holds
+/// only the pixels above the threshold; the edge pixels that the mark covers
+/// by less than the threshold's share are missing from it, on whichever side
+/// the mark's sub-pixel position puts more of them, which biases its
+/// centroid by several hundredths of a pixel. Here they count.
+///
+/// A pixel's share is its contrast over the mark's, `(I - B) / (M - B)`,
+/// with `M` the window's brightest pixel and `B` the background beside the
+/// pixel ([`WindowSides::background_towards`]). The tiles' smooth level
+/// would not do: a mark on a dark backing (the gripper's bar), beside a dark
+/// band (the disc's rim) or near the edge of the part's body lies on a step,
+/// and its edge pixels on the dark side would count too little, the bright
+/// side's background too much, pulling the centre across the step by up to
+/// a tenth of a pixel in every frame alike (measured by `host-sim
+/// vision-check`: the reference 0.022 px towards the disc centre, the
+/// gripper's marks 0.074 px apart, each). Contrast within `floor_grey` of
+/// the background (texture, noise) counts nothing.
 fn window_coverage(
     image: &GrayImage<'_>,
     background: &Background,
@@ -486,7 +487,6 @@ impl WindowSides {
     }
 }
 
-/// The median of sorted values (the mean of the middle two for an even count).
 /// The lesser of two numbers, neither NaN, as `f32::min` gives it (which
 /// is a library call on the Cortex-M4F).
 fn lesser(a: f32, b: f32) -> f32 {
@@ -506,6 +506,7 @@ fn larger(a: f32, b: f32) -> f32 {
     }
 }
 
+/// The median of sorted values (the mean of the middle two for an even count).
 fn median(sorted: &[u8]) -> f32 {
     let n = sorted.len();
     let at = |i: usize| sorted.get(i).copied().map_or(0.0, f32::from);

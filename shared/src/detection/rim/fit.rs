@@ -23,6 +23,10 @@ use super::RimError;
 use crate::detection::identify::lens::LensModel;
 use crate::detection::{Blob, GrayImage};
 
+// A pass reads a zoned pixel's level as `levels[zone]`: the zones are the
+// three levels' indices, and "near" is the first index past them.
+const _: () = assert!(ZONE_NEAR == 3);
+
 /// Ramp widths of the first iterations from the disc centre, px: a wide
 /// ramp first so that a start a pixel or two off still sees the edges, then
 /// the pixel's own (1 px).
