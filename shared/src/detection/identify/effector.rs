@@ -650,7 +650,26 @@ impl EffectorMarks {
     }
 
     /// Keeps `signature` for a later pair to confirm, the oldest dropped.
+    /// The newest kept pair gives way to it while it lies within
+    /// [`CONFIRM_MOVE_M`] of the pair kept before that one: pairs a frame
+    /// apart from a fast camera are millimetres apart (0.35 m/s at 30 Hz:
+    /// 12 mm), and [`SIGNATURE_CANDIDATES`] of them spanned too little of
+    /// the gripper's path for any later pair to confirm them (30 Hz,
+    /// cells 11000045, 86, 146 and 175: `EffectorNotSeen`). So the kept
+    /// pairs span the path whatever the frame rate.
     fn remember_unconfirmed(&mut self, signature: Signature) {
+        let kept = self.unconfirmed.len();
+        let near_the_one_before = kept >= 2
+            && self
+                .unconfirmed
+                .get(kept - 2)
+                .is_some_and(|s| distance3(s.base_m, signature.base_m) < CONFIRM_MOVE_M);
+        if near_the_one_before {
+            if let Some(newest) = self.unconfirmed.last_mut() {
+                *newest = signature;
+                return;
+            }
+        }
         if self.unconfirmed.is_full() {
             self.unconfirmed.remove(0);
         }

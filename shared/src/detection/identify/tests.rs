@@ -282,6 +282,32 @@ mod gripper {
         assert!(points >= 20 && rms < 0.01, "{points} {rms}");
     }
 
+    /// A 30 Hz camera over a gripper sweeping at 0.35 m/s: pairs a frame
+    /// apart are 12 mm apart. They are confirmed once the gripper has
+    /// moved the confirmation's 5 cm, as at 5 Hz, not never.
+    #[test]
+    fn pairs_from_a_fast_camera_are_confirmed_once_the_gripper_has_moved() {
+        let mut stage = stage();
+        let mut first = None;
+        for k in 0..60 {
+            let x = 0.4 + 0.35 * k as f64 / 30.0;
+            let base = [[x, -0.15, 0.35], [x, -0.05, 0.35]];
+            let found = stage.identify(
+                &[Some(blob(base[0], 0)), Some(blob(base[1], 1))],
+                &base,
+                Some(YARDSTICK),
+            );
+            if found.iter().any(Option::is_some) && first.is_none() {
+                first = Some(k);
+            }
+        }
+        // 5 cm at 12 mm a frame, and a frame or two to agree.
+        assert!(
+            first.is_some_and(|k| k <= 10),
+            "first labelled at {first:?}"
+        );
+    }
+
     /// Once the projection is fitted, a mark read a few tenths of a pixel
     /// off where it predicts (the arm hiding part of it) is not labelled:
     /// its light alone would pass.
