@@ -248,49 +248,38 @@ impl RowRamps {
     /// it steps from centre `k - 1` to centre `k` (`TILE_PX` pixels, the
     /// first half a pixel past the first centre).
     pub fn segment(&self, k: usize, width: usize) -> Option<Segment> {
-        let head = (TILE_PX / 2).min(width);
-        let pairs = self.tiles.saturating_sub(1);
-        let at = |values: &[i32; MAX_TILES_X], t: usize| values.get(t).copied().unwrap_or(0);
-        let constant = |values: &[i32; MAX_TILES_X], t: usize| Ramp {
-            start: at(values, t),
-            step: 0,
-        };
-        let between = |values: &[i32; MAX_TILES_X], t: usize| {
-            let (a, b) = (at(values, t), at(values, t + 1));
-            let step = (b - a) / TILE_PX as i32;
-            Ramp {
-                start: a + step / 2,
-                step,
-            }
-        };
-        let segment = if k == 0 {
-            Segment {
-                x0: 0,
-                len: head,
-                level: constant(&self.level, 0),
-                threshold: constant(&self.threshold, 0),
-            }
-        } else if k <= pairs {
-            let x0 = (head + (k - 1) * TILE_PX).min(width);
-            Segment {
-                x0,
-                len: TILE_PX.min(width - x0),
-                level: between(&self.level, k - 1),
-                threshold: between(&self.threshold, k - 1),
-            }
-        } else if k == pairs + 1 {
-            let x0 = (head + pairs * TILE_PX).min(width);
-            let last = self.tiles.saturating_sub(1);
-            Segment {
-                x0,
-                len: width - x0,
-                level: constant(&self.level, last),
-                threshold: constant(&self.threshold, last),
-            }
-        } else {
+        if k >= self.segment_count() {
             return None;
+        }
+        let (x0, x1) = self.segment_columns(k, width);
+        let last = self.tiles.saturating_sub(1);
+        let ramp = |values: &[i32; MAX_TILES_X]| {
+            let at = |t: usize| values.get(t).copied().unwrap_or(0);
+            match k {
+                0 => Ramp {
+                    start: at(0),
+                    step: 0,
+                },
+                k if k <= last => {
+                    let (a, b) = (at(k - 1), at(k));
+                    let step = (b - a) / TILE_PX as i32;
+                    Ramp {
+                        start: a + step / 2,
+                        step,
+                    }
+                }
+                _ => Ramp {
+                    start: at(last),
+                    step: 0,
+                },
+            }
         };
-        (segment.len > 0).then_some(segment)
+        (x1 > x0).then(|| Segment {
+            x0,
+            len: x1 - x0,
+            level: ramp(&self.level),
+            threshold: ramp(&self.threshold),
+        })
     }
 }
 

@@ -48,6 +48,9 @@ pub use image::{GrayImage, ImageError, MAX_HEIGHT_PX, MAX_WIDTH_PX};
 
 // The working memory the docs state, held at compile time.
 const _: () = assert!(Detector::WORKING_MEMORY_BYTES <= 16 * 1024);
+// A row's segments (the head and one past each tile centre) all fit the
+// labeller's spans.
+const _: () = assert!(MAX_WIDTH_PX.div_ceil(background::TILE_PX) < MAX_SPANS);
 
 /// Most mark candidates one image yields; more are counted and dropped.
 pub const MAX_BLOBS: usize = 64;
@@ -246,15 +249,12 @@ impl Detector {
                         0
                     };
                 }
-                let (start, end) = (segment.x0, segment.x0 + segment.len);
+                // Touching segments go to the labeller as one span (cheaper
+                // than its joining them); all fit (held above).
                 match spans.last_mut() {
-                    Some(last) if last.1 == start => last.1 = end,
+                    Some(last) if last.1 == x0 => last.1 = x1,
                     _ => {
-                        if spans.push((start, end)).is_err() {
-                            if let Some(last) = spans.last_mut() {
-                                last.1 = end;
-                            }
-                        }
+                        let _ = spans.push((x0, x1));
                     }
                 }
             }
