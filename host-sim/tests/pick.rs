@@ -94,10 +94,13 @@ fn the_search_halts_once_the_marks_have_crossed_the_view() {
     let run = run_pick_in_process(&experiment("turning"), 7).unwrap();
     assert_eq!(run.result, PickResult::Success, "{:?}", run.phases);
     assert_safe(&run);
+    // The search ends where the next phase begins (`Estimating`, or
+    // `CalibrateBase` when the first estimate landed on the way back).
     let search_end = run
         .phases
         .iter()
-        .find(|p| p.phase == PickPhase::Estimating)
+        .skip_while(|p| p.phase != PickPhase::SearchEffector)
+        .find(|p| p.phase != PickPhase::SearchEffector)
         .map(|p| p.t_s)
         .unwrap();
     let start = run.phases.first().map(|p| p.t_s).unwrap();

@@ -8,6 +8,7 @@ use nalgebra::Vector3;
 use super::camera_trigger::CameraTrigger;
 use super::cell::{Cell, ConfigError};
 use super::drop_off::check_drop_off;
+use super::early::EarlyFinish;
 use super::job_slot::JobSlot;
 use super::motion::Motion;
 use super::pairing::FramePairer;
@@ -163,6 +164,8 @@ impl PickController {
             next_plan_attempt_s: 0.0,
             plan_lead_s: settings.plan_budget_s,
             calibration_rounds: 0,
+            early: EarlyFinish::new(),
+            preliminary_asked: false,
             estimate_serial: 0,
             refresh: Refresh::new(),
             qdd_commanded: JointVector::zeros(),

@@ -31,6 +31,7 @@ mod build;
 mod camera_trigger;
 pub mod cell;
 pub mod drop_off;
+mod early;
 pub mod estimate;
 pub mod handoff;
 mod io;
@@ -67,10 +68,11 @@ pub use self::build::PickParts;
 use self::brake::JointBrake;
 use self::camera_trigger::CameraTrigger;
 use self::cell::Cell;
+use self::early::EarlyFinish;
 use self::estimate::CellEstimate;
 use self::handoff::{ControlEvent, JobOutcome, JobRequest};
 use self::job_slot::JobSlot;
-use self::jobs::{ConveyorSnapshot, MAX_CALIBRATION_POSES};
+use self::jobs::{ConveyorSnapshot, MAX_CALIBRATION_POSES, SAME_HEIGHT_M};
 use self::motion::Motion;
 use self::pace::CalibrationPose;
 use self::refresh::Refresh;
@@ -234,6 +236,11 @@ pub struct PickController {
     poses: Vec<CalibrationPose, MAX_CALIBRATION_POSES>,
     /// Rounds of calibration poses shown.
     calibration_rounds: u8,
+    /// The early estimates of the calibration (see [`early`]).
+    early: EarlyFinish,
+    /// The preliminary estimate was asked for as the search went back over
+    /// the marks.
+    preliminary_asked: bool,
     /// The final calibration was accepted (the pick may go down to the part).
     calibration_accepted: bool,
     /// The earliest time of the next intercept plan's request.
@@ -464,7 +471,20 @@ impl PickController {
                 // better, part at the grasp 2.37 against 2.24 mm at the
                 // 95th percentile through images, seed 11.)
                 match self.route.search_return(leg, self.sightings.azimuth()) {
-                    Some(target) => self.arc_to(target),
+                    Some(target) => {
+                        let motion = self.arc_to(target);
+                        // Seen often enough already: the preliminary estimate
+                        // is made while the arm goes back, not after.
+                        if motion.is_ok()
+                            && self.counters.effector_sightings >= settings.min_effector_sightings
+                            && self.jobs.is_idle()
+                        {
+                            let request = self.estimate_request(true, target);
+                            self.request(request, settings.estimate_budget_s);
+                            self.preliminary_asked = true;
+                        }
+                        motion
+                    }
                     None => Err(PlanError::InvalidLimits {
                         what: "the search has no such sweep",
                     }),
@@ -485,14 +505,15 @@ impl PickController {
             }
             Step::EstimatePreliminary | Step::EstimateFinal => {
                 self.hold_here();
-                let request = JobRequest::Estimate {
-                    preliminary: step == Step::EstimatePreliminary,
-                    time_us: self.last_time_us,
-                    start_pose: self.route.start_pose(),
-                    q_now: self.observer.q(),
-                    from: self.resting_point(),
-                    waist_centre_azimuth: self.route.waist_centre_azimuth(),
-                };
+                let preliminary = step == Step::EstimatePreliminary;
+                if preliminary && self.preliminary_asked {
+                    // Asked for on the way back; it lands here.
+                    return;
+                }
+                // An early estimate still in flight is forgotten: this one
+                // has every pose's frames.
+                self.early.forget();
+                let request = self.estimate_request(preliminary, self.resting_point());
                 self.request(request, settings.estimate_budget_s);
                 return;
             }
@@ -592,6 +613,9 @@ impl PickController {
             Step::ReturnRaise => self.arc_to(self.route.raise_from(&drop_off)),
             Step::ReturnTransfer => self.arc_to(self.route.home()),
             Step::Stopping | Step::InterceptAbandoned | Step::SearchHalt => self.decelerate(),
+            // To rest as a stop would come (a move's remaining path may be
+            // longer); if no stop can be planned, the move runs to its end.
+            Step::CalibrateHalt => Ok(self.decelerate().unwrap_or(self.motion)),
         };
         match motion {
             Ok(motion) => self.motion = motion,
@@ -653,6 +677,7 @@ impl PickController {
         match self.step {
             Step::Intercept => self.ask_refresh(in_step),
             Step::Track => self.take_refresh(),
+            Step::CalibrateMove(_) | Step::CalibrateDwell(_) => self.take_early_estimate(),
             _ => {}
         }
         self.refresh.expire(now, settings.estimate_fade_s);
@@ -730,7 +755,17 @@ impl PickController {
                 }
             }
             Step::EstimatePreliminary | Step::EstimateFinal => self.on_estimate(in_step),
-            Step::CalibrateMove(i) if finished => self.enter(Step::CalibrateDwell(i)),
+            // Known well enough before the last pose: the calibration ends
+            // where the arm comes to rest.
+            Step::CalibrateMove(_) if self.early.met() => self.enter(Step::CalibrateHalt),
+            Step::CalibrateDwell(_) if self.early.met() => self.accept_calibration(),
+            Step::CalibrateHalt if finished => self.accept_calibration(),
+            Step::CalibrateMove(i) if finished => {
+                // At the pose: the estimate is asked for as the marks are
+                // shown there, and lands on the way to the next.
+                self.ask_early_estimate(usize::from(i).saturating_add(1));
+                self.enter(Step::CalibrateDwell(i))
+            }
             Step::CalibrateDwell(i) if in_step >= settings.calibration_dwell_s => {
                 self.enter(Step::CalibrateMove(i.saturating_add(1)))
             }
@@ -809,13 +844,23 @@ impl PickController {
     fn on_estimate(&mut self, in_step: f32) {
         let preliminary = self.step == Step::EstimatePreliminary;
         match self.jobs.take_ready(self.now_s) {
+            // Asked for on the way back, from the sightings before it, and
+            // refused: asked again from all of them, the arm at rest.
+            Some(JobOutcome::Estimate(Err(_))) if preliminary && self.preliminary_asked => {
+                self.preliminary_asked = false;
+                let request = self.estimate_request(true, self.resting_point());
+                self.request(request, self.settings.estimate_budget_s);
+                self.step_started_s = self.now_s;
+            }
             Some(JobOutcome::Estimate(Ok((estimate, poses)))) => {
+                self.preliminary_asked = false;
                 self.estimate = Some(estimate);
                 self.estimate_serial = self.estimate_serial.wrapping_add(1);
                 let unsure = !self.sure_to_grasp(&estimate.report);
                 if preliminary {
                     self.poses = poses;
                     self.calibration_rounds = 1;
+                    self.early = EarlyFinish::new();
                     self.enter(Step::CalibrateMove(0));
                 } else if unsure
                     && self.calibration_rounds < self.settings.max_calibration_rounds
@@ -827,18 +872,90 @@ impl PickController {
                     pace::reversed(&mut self.poses);
                     self.enter(Step::CalibrateMove(0));
                 } else {
-                    self.calibration_accepted = true;
-                    self.view.arm(
-                        &estimate,
-                        &self.cell.log_header().camera,
-                        self.cell.config.reference_radius_m,
-                    );
-                    self.enter(Step::Locate);
+                    self.accept_calibration();
                 }
             }
             Some(JobOutcome::Estimate(Err(cause))) => self.raise(cause),
             Some(JobOutcome::Plan(_)) => self.raise(FaultCause::Timeout),
             None if in_step > self.settings.estimate_timeout_s => self.raise(FaultCause::Timeout),
+            None => {}
+        }
+    }
+
+    /// The estimate in use is the calibration: the view monitor is armed
+    /// with it and the pick locates the part.
+    fn accept_calibration(&mut self) {
+        let Some(estimate) = self.estimate else {
+            // Accepted only with an estimate in use; never locate without one.
+            self.raise(FaultCause::CalibrationFailed);
+            return;
+        };
+        self.calibration_accepted = true;
+        self.view.arm(
+            &estimate,
+            &self.cell.log_header().camera,
+            self.cell.config.reference_radius_m,
+        );
+        self.enter(Step::Locate);
+    }
+
+    /// The worker's estimate job for the pick as it stands, the arm to be
+    /// at rest at `from` when its result is applied.
+    fn estimate_request(&self, preliminary: bool, from: ArcPoint<f32>) -> JobRequest {
+        JobRequest::Estimate {
+            preliminary,
+            time_us: self.last_time_us,
+            start_pose: self.route.start_pose(),
+            q_now: self.observer.q(),
+            from,
+            waist_centre_azimuth: self.route.waist_centre_azimuth(),
+        }
+    }
+
+    /// Asks for an early estimate made from the poses before `next` (the
+    /// arm has reached the one before), when one is due (see [`early`]).
+    fn ask_early_estimate(&mut self, next: usize) {
+        let lowest = |poses: &[CalibrationPose]| {
+            poses
+                .iter()
+                .map(|pose| pose.point.z_m)
+                .fold(f32::INFINITY, f32::min)
+        };
+        let shown = self.poses.get(..next).unwrap_or(&[]);
+        let lowest_shown = lowest(shown) <= lowest(&self.poses) + SAME_HEIGHT_M;
+        let due = self.early.due(
+            self.jobs.is_idle(),
+            next,
+            self.poses.len(),
+            self.settings.early_estimate_after_poses,
+            lowest_shown,
+        );
+        if due {
+            self.early.asked();
+            let request = self.estimate_request(false, self.resting_point());
+            self.request(request, self.settings.estimate_budget_s);
+        }
+    }
+
+    /// Takes an early estimate that has come: it becomes the estimate in use
+    /// only if it meets the target and the pick is sure of it; a failed one
+    /// (too few sightings yet, the part's path out of reach) only means the
+    /// poses go on to the final estimate, which judges for itself.
+    fn take_early_estimate(&mut self) {
+        if !self.early.in_flight() {
+            return;
+        }
+        match self.jobs.take_ready(self.now_s) {
+            Some(JobOutcome::Estimate(Ok((estimate, _)))) => {
+                let met = early::meets_target(&estimate.report, &self.settings)
+                    && self.sure_to_grasp(&estimate.report);
+                self.early.landed(met);
+                if met {
+                    self.estimate = Some(estimate);
+                    self.estimate_serial = self.estimate_serial.wrapping_add(1);
+                }
+            }
+            Some(_) => self.early.landed(false),
             None => {}
         }
     }
@@ -851,14 +968,7 @@ impl PickController {
         let track_s = self.settings.track_settle_s;
         if self.jobs.is_idle() && self.refresh.due(remaining_s, lead_s, track_s) {
             self.refresh.asked();
-            let request = JobRequest::Estimate {
-                preliminary: false,
-                time_us: self.last_time_us,
-                start_pose: self.route.start_pose(),
-                q_now: self.observer.q(),
-                from: self.resting_point(),
-                waist_centre_azimuth: self.route.waist_centre_azimuth(),
-            };
+            let request = self.estimate_request(false, self.resting_point());
             self.request(request, lead_s);
         }
     }

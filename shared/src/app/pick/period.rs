@@ -286,6 +286,10 @@ impl PickController {
     fn on_stall(&mut self, flange: &nalgebra::Isometry3<f32>) {
         self.counters.stalls = self.counters.stalls.saturating_add(1);
         self.reference = TaskState::at_rest(flange.translation.vector, self.tool_yaw_measured);
+        // The motion in progress ran on through the gap without the arm: a
+        // stop must not take up what is left of it (an arc's last part is
+        // otherwise kept as its own stop, see `decelerate`), but start from here.
+        self.hold_here();
         self.controller.reset();
         self.integral_reset_s = self.now_s;
         match self.step {

@@ -55,6 +55,20 @@ pub struct PickSettings {
     pub calibration_heights_m: [f32; 3],
     /// How long each calibration pose is held (see `calibration_heights_m`).
     pub calibration_dwell_s: f32,
+    /// From this many calibration poses on, an estimate is asked for after
+    /// each pose while the arm goes on to the next; one that meets the
+    /// `calibrated_sigma_*` ends the calibration there (see `early`). Three
+    /// poses, one per height of `calibration_heights_m`, have shown the marks
+    /// down to the lowest.
+    pub early_estimate_after_poses: u8,
+    /// The part in the base frame known this well (1-sigma, the root of the
+    /// horizontal covariance's trace at the worst disc angle) ends the
+    /// calibration before the last pose, m.
+    pub calibrated_sigma_horizontal_m: f32,
+    /// The same for the part's height in the base frame, m.
+    pub calibrated_sigma_vertical_m: f32,
+    /// The same for its yaw, rad.
+    pub calibrated_sigma_yaw_rad: f32,
     /// Hover height above the grasp point while intercepting and tracking.
     pub hover_height_m: f32,
     /// How long tracking must hold the gripper within `track_tolerance_m`
@@ -247,6 +261,10 @@ impl Default for PickSettings {
             min_effector_sightings: 6,
             calibration_heights_m: [0.35, 0.20, 0.08],
             calibration_dwell_s: 0.6,
+            early_estimate_after_poses: 3,
+            calibrated_sigma_horizontal_m: 0.0008,
+            calibrated_sigma_vertical_m: 0.0012,
+            calibrated_sigma_yaw_rad: 0.0017,
             hover_height_m: 0.06,
             track_settle_s: 0.3,
             track_tolerance_m: 0.003,

@@ -11,7 +11,7 @@ use super::cell::{Cell, ConfigError};
 use super::estimate::CellEstimate;
 use super::handoff::{JobOutcome, JobRequest, JobResult, JobTicket, VisionNews, WorkItem};
 use super::jobs::{
-    calibration_poses, part_path_enters_reach, plan_part_intercept, ConveyorSnapshot,
+    calibration_poses, joints_at, part_path_enters_reach, plan_part_intercept, ConveyorSnapshot,
     MAX_CALIBRATION_POSES,
 };
 use super::motion::Prediction;
@@ -196,6 +196,10 @@ impl PickWorker {
             return Err(FaultCause::CalibrationFailed);
         }
         if preliminary {
+            // Asked for as the arm sets off back over the marks: the poses
+            // start from where that return ends.
+            let q_from = joints_at(&self.model, from, q_now);
+            let q_now = &q_from;
             let poses = calibration_poses(
                 &estimate,
                 &self.cell.log_header().camera,
