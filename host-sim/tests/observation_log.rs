@@ -382,10 +382,15 @@ fn a_30_hz_log_replays_with_the_controllers_adoptions() {
     );
     // Adopted at the camera and the part alone when the store filled (256
     // frames with detections, 8.5 s into the search), then at each estimate
-    // the controller reported before the log's (the preliminary, and the
-    // final one when an intercept long enough for a refresh followed it).
+    // the worker made before the log's: the preliminary, the early ones
+    // asked for at the calibration poses (which the controller reports only
+    // when one ends the calibration), and the final one when an intercept
+    // long enough for a refresh followed it.
     let adopted = &provenance.adopted_after_frames;
-    assert_eq!(adopted.len(), logged.run.calibrations.len(), "{adopted:?}");
+    assert!(
+        adopted.len() >= logged.run.calibrations.len(),
+        "{adopted:?}"
+    );
     assert!((256..300).contains(&adopted[0]), "{adopted:?}");
     assert!(adopted.windows(2).all(|w| w[0] < w[1]), "{adopted:?}");
     let report = logged.run.calibrations.last().unwrap().report;

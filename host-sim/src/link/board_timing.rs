@@ -53,12 +53,15 @@ pub struct BoardTiming {
 /// view (the estimates come 15 s sooner, over fewer frames; the bench's
 /// 656-frame cell, `BENCH_M4_ONLY=estimate bench-m4/run.sh`, costs 138 and
 /// 147 million); 55 million for the preliminary estimate since the worker
-/// proves each calibration move's joint speeds (`pick::pace`, 8.3 million).
-pub const MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS: u64 = 55_357_360;
+/// proves each calibration move's joint speeds (`pick::pace`, 8.3 million);
+/// 51, 96 and 54 million (preliminary, final, plan) since the preliminary
+/// estimate is made on the search's way back, from fewer sightings, and the
+/// poses are the widest of 30 candidates.
+pub const MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS: u64 = 51_274_920;
 /// See [`MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS`].
-pub const MEASURED_ESTIMATE_FINAL_INSTRUCTIONS: u64 = 97_366_200;
+pub const MEASURED_ESTIMATE_FINAL_INSTRUCTIONS: u64 = 96_221_960;
 /// See [`MEASURED_ESTIMATE_PRELIMINARY_INSTRUCTIONS`].
-pub const MEASURED_PLAN_INSTRUCTIONS: u64 = 50_791_360;
+pub const MEASURED_PLAN_INSTRUCTIONS: u64 = 53_865_080;
 
 /// Cycles an instruction, the pick period's on the cycle model
 /// (docs/performance.md, "Cycles on the STM32F407"): 2.03. The jobs' soft
@@ -139,7 +142,7 @@ mod tests {
             waist_centre_azimuth: 0.0,
         };
         let seconds = timing.job_us(&final_estimate) as f64 * 1e-6;
-        // 97.4 M instructions x 2.03 / 168 MHz / 0.87 of the core: 1.35 s.
+        // 96.2 M instructions x 2.03 / 168 MHz / 0.87 of the core: 1.33 s.
         assert!((1.25..1.45).contains(&seconds), "{seconds} s");
         assert!(timing.describe().contains("168 MHz"));
     }

@@ -83,7 +83,7 @@ pub fn calibration_poses(
     let mut q = *q_seed;
     let ik = IkConfig::default();
     for (row, height) in settings.calibration_heights_m.iter().enumerate() {
-        for radial_offset in [-0.3_f32, -0.05] {
+        for radial_offset in [-0.25_f32, -0.05] {
             for step in 0..5 {
                 // Serpentine: alternate the lateral direction row by row.
                 let k = if row % 2 == 0 { step } else { 4 - step };
@@ -160,8 +160,11 @@ fn one_side_of_the_waist_stop(
 /// The marks' spread across the image is what measures their depth, and so
 /// the base's height (a scale the disc's reference circle sets only through
 /// its own 40 pixels): the widest 8 of 30 candidates took the part at the
-/// grasp from 4.90 to 4.42 mm at the 95th percentile (1,000 cells at 5 Hz,
-/// through points).
+/// grasp from 4.84 to 4.58 mm at the 95th percentile (1,000 cells at 5 Hz,
+/// through points). The nearer radius stays 0.25 m inside the disc's
+/// centre: 0.3 m gave 4.40 mm, but left the wrist of a near disc's pose so
+/// close to its singularity that no intercept could be planned from there
+/// (5 cells of 1,000 through images, `PartUnreachable`).
 fn widest_spread(candidates: &[(ArcPoint<f32>, f32)]) -> Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES> {
     let position = |pose: &ArcPoint<f32>| {
         let (s, c) = crate::control::trig::sin_cos(pose.azimuth_rad);

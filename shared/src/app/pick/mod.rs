@@ -613,9 +613,6 @@ impl PickController {
             Step::ReturnRaise => self.arc_to(self.route.raise_from(&drop_off)),
             Step::ReturnTransfer => self.arc_to(self.route.home()),
             Step::Stopping | Step::InterceptAbandoned | Step::SearchHalt => self.decelerate(),
-            // To rest as a stop would come (a move's remaining path may be
-            // longer); if no stop can be planned, the move runs to its end.
-            Step::CalibrateHalt => Ok(self.decelerate().unwrap_or(self.motion)),
         };
         match motion {
             Ok(motion) => self.motion = motion,
@@ -756,10 +753,13 @@ impl PickController {
             }
             Step::EstimatePreliminary | Step::EstimateFinal => self.on_estimate(in_step),
             // Known well enough before the last pose: the calibration ends
-            // where the arm comes to rest.
-            Step::CalibrateMove(_) if self.early.met() => self.enter(Step::CalibrateHalt),
+            // at the pose the arm is at or on its way to. (Brought to rest
+            // where it was, the arm could stop between poses with its
+            // wrist near the singularity the poses keep clear of, and no
+            // intercept could be planned from there: 5 cells of 1,000
+            // through images.)
+            Step::CalibrateMove(_) if finished && self.early.met() => self.accept_calibration(),
             Step::CalibrateDwell(_) if self.early.met() => self.accept_calibration(),
-            Step::CalibrateHalt if finished => self.accept_calibration(),
             Step::CalibrateMove(i) if finished => {
                 // At the pose: the estimate is asked for as the marks are
                 // shown there, and lands on the way to the next.

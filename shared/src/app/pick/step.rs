@@ -26,9 +26,6 @@ pub(super) enum Step {
     EstimatePreliminary,
     CalibrateMove(u8),
     CalibrateDwell(u8),
-    /// An early estimate met the target while the arm moved between poses:
-    /// it comes to rest there, and the calibration ends (`early`).
-    CalibrateHalt,
     EstimateFinal,
     Locate,
     Intercept,
@@ -61,9 +58,7 @@ impl Step {
             | Self::SearchReturn
             | Self::SearchLook(_)
             | Self::SearchHalt => PickPhase::SearchEffector,
-            Self::CalibrateMove(_) | Self::CalibrateDwell(_) | Self::CalibrateHalt => {
-                PickPhase::CalibrateBase
-            }
+            Self::CalibrateMove(_) | Self::CalibrateDwell(_) => PickPhase::CalibrateBase,
             Self::EstimatePreliminary | Self::EstimateFinal => PickPhase::Estimating,
             Self::Locate | Self::InterceptAbandoned | Self::Relocate => PickPhase::Locate,
             Self::Intercept => PickPhase::Intercept,
@@ -92,7 +87,6 @@ impl Step {
                 | Self::SearchHalt
                 | Self::CalibrateMove(_)
                 | Self::CalibrateDwell(_)
-                | Self::CalibrateHalt
                 | Self::Locate
                 | Self::Intercept
                 | Self::InterceptAbandoned
