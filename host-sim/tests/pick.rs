@@ -12,10 +12,6 @@ fn experiment(name: &str) -> PickExperiment {
     PickScenarioFile::default_experiment(name).unwrap()
 }
 
-fn norm(v: [f64; 3]) -> f64 {
-    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
-}
-
 /// Limits every run must respect, whatever its outcome.
 fn assert_safe(run: &PickRun) {
     assert!(
@@ -49,17 +45,24 @@ fn the_paper_experiments_and_the_moving_pick_succeed() {
         assert_eq!(run.link, LinkRecord::default(), "{name}");
         assert_safe(&run);
         let grasp = run.grasp.unwrap();
-        let estimate_error = norm(grasp.estimate_error_m.unwrap());
-        // The paper reports about 10 mm and 5 degrees; the gripper tolerates 5 mm horizontally.
+        let [x, y, z] = grasp.estimate_error_m.unwrap();
+        // The paper reports about 10 mm and 5 degrees; the gripper takes 5 mm
+        // horizontally and 10 mm vertically (the experiments told the disc's
+        // height to 3 mm put 4 to 5 mm of it in the height).
+        let horizontal = x.hypot(y);
         assert!(
-            estimate_error < 0.005,
-            "{name}: estimate error {estimate_error} m"
+            horizontal < 0.004 && z.abs() < 0.008,
+            "{name}: estimate error {x}, {y}, {z} m"
         );
         assert!(
             grasp.estimate_yaw_error_rad.unwrap() < 1.5f64.to_radians(),
             "{name}"
         );
-        assert!(norm(grasp.position_error_m) < 0.005, "{name}: grasp error");
+        let [x, y, z] = grasp.position_error_m;
+        assert!(
+            x.hypot(y) < 0.004 && z.abs() < 0.008,
+            "{name}: grasp error {x}, {y}, {z} m"
+        );
         assert!(run.calibrated_after_s.unwrap() < 60.0, "{name}");
         assert!(
             run.placed_error_m.unwrap() < 0.01,

@@ -115,10 +115,18 @@ fn the_emulated_firmware_picks_the_part_as_the_in_process_controller_does() {
         .grasp
         .as_ref()
         .unwrap_or_else(|| panic!("no grasp"));
-    let estimate_error = grasp.estimate_error_m.map_or(f64::INFINITY, norm);
-    assert!(estimate_error < 0.005, "estimate error {estimate_error} m");
-    let grasp_error = norm(grasp.position_error_m);
-    assert!(grasp_error < 0.005, "grasp error {grasp_error} m");
+    // Within the gripper's capture (5 mm horizontally, 10 mm vertically),
+    // with room: the disc's height told to 3 mm puts 4 to 5 mm in the height.
+    let [x, y, z] = grasp.estimate_error_m.unwrap_or([f64::INFINITY; 3]);
+    assert!(
+        x.hypot(y) < 0.004 && z.abs() < 0.008,
+        "estimate error {x}, {y}, {z} m"
+    );
+    let [x, y, z] = grasp.position_error_m;
+    assert!(
+        x.hypot(y) < 0.004 && z.abs() < 0.008,
+        "grasp error {x}, {y}, {z} m"
+    );
 
     // The same code on the same inputs, and every job result applied at its
     // fixed due time: the same run, up to rounding. The M4's arithmetic and

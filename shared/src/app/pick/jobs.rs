@@ -162,9 +162,10 @@ fn one_side_of_the_waist_stop(
 /// its own 40 pixels): the widest 8 of 30 candidates took the part at the
 /// grasp from 4.84 to 4.58 mm at the 95th percentile (1,000 cells at 5 Hz,
 /// through points). The nearer radius stays 0.25 m inside the disc's
-/// centre: 0.3 m gave 4.40 mm, but left the wrist of a near disc's pose so
-/// close to its singularity that no intercept could be planned from there
-/// (5 cells of 1,000 through images, `PartUnreachable`).
+/// centre: 0.3 m gave 4.40 mm, but with it (and the arm then brought to
+/// rest between poses when an early estimate met its target) 5 cells of
+/// 1,000 through images stopped where the wrist was near its singularity
+/// and found no intercept (`PartUnreachable`); 0.25 m alone cleared them.
 fn widest_spread(candidates: &[(ArcPoint<f32>, f32)]) -> Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES> {
     let position = |pose: &ArcPoint<f32>| {
         let (s, c) = crate::control::trig::sin_cos(pose.azimuth_rad);
@@ -202,7 +203,7 @@ fn widest_spread(candidates: &[(ArcPoint<f32>, f32)]) -> Vec<ArcPoint<f32>, MAX_
                 )
             })
             .fold(None, |best: Option<(usize, f32)>, (k, d)| match best {
-                Some((_, most)) if most >= d => best,
+                Some((_, most)) if d <= most + TIE_M => best,
                 _ => Some((k, d)),
             });
         let Some((k, _)) = farthest else {
@@ -215,6 +216,12 @@ fn widest_spread(candidates: &[(ArcPoint<f32>, f32)]) -> Vec<ArcPoint<f32>, MAX_
     }
     poses
 }
+
+/// Distances within this of each other are a tie, m, which the candidates'
+/// order breaks: the candidates lie on a symmetric grid, where the last bit
+/// of a distance (the M4F's and the host's differ there) would otherwise
+/// choose, and the emulated board's pick part from the host's.
+const TIE_M: f32 = 1e-3;
 
 /// Poses at one height within this of each other, m.
 pub const SAME_HEIGHT_M: f32 = 0.01;
@@ -255,7 +262,7 @@ fn in_visiting_order(poses: &mut [ArcPoint<f32>], flange: Vector3<f32>) {
             })
             .map(|(k, pose)| (k, (position(pose) - at).norm()))
             .fold(None, |best: Option<(usize, f32)>, (k, d)| match best {
-                Some((_, least)) if least <= d => best,
+                Some((_, least)) if d >= least - TIE_M => best,
                 _ => Some((k, d)),
             });
         if let Some((k, _)) = nearest {
