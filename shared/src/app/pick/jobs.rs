@@ -160,7 +160,7 @@ fn one_side_of_the_waist_stop(
 /// The marks' spread across the image is what measures their depth, and so
 /// the base's height (a scale the disc's reference circle sets only through
 /// its own 40 pixels): the widest 8 of 30 candidates took the part at the
-/// grasp from 4.84 to 4.58 mm at the 95th percentile (1,000 cells at 5 Hz,
+/// grasp from 4.84 to 4.68 mm at the 95th percentile (1,000 cells at 5 Hz,
 /// through points). The nearer radius stays 0.25 m inside the disc's
 /// centre: 0.3 m gave 4.40 mm, but with it (and the arm then brought to
 /// rest between poses when an early estimate met its target) 5 cells of
