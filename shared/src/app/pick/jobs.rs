@@ -167,10 +167,6 @@ fn one_side_of_the_waist_stop(
 /// 1,000 through images stopped where the wrist was near its singularity
 /// and found no intercept (`PartUnreachable`); 0.25 m alone cleared them.
 fn widest_spread(candidates: &[(ArcPoint<f32>, f32)]) -> Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES> {
-    let position = |pose: &ArcPoint<f32>| {
-        let (s, c) = crate::control::trig::sin_cos(pose.azimuth_rad);
-        Vector3::new(pose.radius_m * c, pose.radius_m * s, pose.z_m)
-    };
     let mut poses: Vec<ArcPoint<f32>, MAX_CALIBRATION_POSES> = Vec::new();
     let Some(count) = core::num::NonZeroUsize::new(candidates.len()) else {
         return poses;
@@ -217,6 +213,12 @@ fn widest_spread(candidates: &[(ArcPoint<f32>, f32)]) -> Vec<ArcPoint<f32>, MAX_
     poses
 }
 
+/// Where `pose` puts the flange, base frame.
+fn position(pose: &ArcPoint<f32>) -> Vector3<f32> {
+    let (s, c) = crate::control::trig::sin_cos(pose.azimuth_rad);
+    Vector3::new(pose.radius_m * c, pose.radius_m * s, pose.z_m)
+}
+
 /// Distances within this of each other are a tie, m, which the candidates'
 /// order breaks: the candidates lie on a symmetric grid, where the last bit
 /// of a distance (the M4F's and the host's differ there) would otherwise
@@ -237,10 +239,6 @@ pub const SAME_HEIGHT_M: f32 = 0.01;
 /// back and forth (17.5 s for 8 poses on the default cell, 13 s nearest
 /// next).
 fn in_visiting_order(poses: &mut [ArcPoint<f32>], flange: Vector3<f32>) {
-    let position = |pose: &ArcPoint<f32>| {
-        let (s, c) = crate::control::trig::sin_cos(pose.azimuth_rad);
-        Vector3::new(pose.radius_m * c, pose.radius_m * s, pose.z_m)
-    };
     let mut at = flange;
     // Poses below this are the staircase's next steps.
     let mut step_below = f32::INFINITY;
@@ -311,9 +309,7 @@ pub fn joints_at(
     q_seed: &JointVector<f32>,
 ) -> JointVector<f32> {
     let seed = waist_turned_towards(robot, q_seed, point.azimuth_rad);
-    let (s, c) = crate::control::trig::sin_cos(point.azimuth_rad);
-    let position = Vector3::new(point.radius_m * c, point.radius_m * s, point.z_m);
-    let pose = TaskState::at_rest(position, point.yaw_rad).pose();
+    let pose = TaskState::at_rest(position(point), point.yaw_rad).pose();
     solve_ik(robot, &pose, &seed, &IkConfig::default()).unwrap_or(*q_seed)
 }
 
