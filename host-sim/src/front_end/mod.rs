@@ -94,6 +94,7 @@ pub fn identify_settings(header: &RecordingHeader) -> Result<IdentifySettings> {
             k1: header.k1,
             k2: header.k2,
         },
+        image_size_px: [header.camera.width, header.camera.height],
         reference_radius_m: header.reference_radius_m,
         disc_radius_m: header.disc_radius_m,
         part_feature_count: header.part_feature_count,

@@ -249,7 +249,18 @@ pub fn pose_from_plane<I: Iterator<Item = PlanePoint> + Clone>(
     if inliers * 4 < total * 3 {
         return Err(failure);
     }
-    // ray ~ [r1 r2 t] (X, Y, 1): columns of camera_from_disc and its translation, up to scale.
+    pose_from_homography(&homography)
+}
+
+/// The camera's pose from the homography of a plane (its `(x, y)`, m, to
+/// rays): the intrinsics known, `ray ~ [r1 r2 t] (x, y, 1)` gives the
+/// rotation's first two columns and the plane origin's place in the
+/// camera frame, up to one scale (the columns' mean norm; the origin lies
+/// in front of the camera).
+pub fn pose_from_homography(homography: &Matrix3<f64>) -> Result<PlanePose, CalibrationError> {
+    let failure = CalibrationError::NumericalFailure {
+        stage: "disc-plane homography",
+    };
     let h1: Vector3<f64> = homography.column(0).into_owned();
     let h2: Vector3<f64> = homography.column(1).into_owned();
     let h3: Vector3<f64> = homography.column(2).into_owned();

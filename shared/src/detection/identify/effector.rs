@@ -45,6 +45,7 @@
 
 use heapless::Vec;
 
+use super::lens::LensModel;
 use super::projection::BaseProjection;
 use super::{LabelledPoint, MarkLabel};
 use crate::detection::MAX_BLOBS;
@@ -90,6 +91,17 @@ const GAIN_MIN: f64 = 0.55;
 const GAIN_MAX: f64 = 2.0;
 /// The base-frame marks must lie this far apart, m (the gripper's drawing).
 const MIN_BASE_SEPARATION_M: f64 = 0.02;
+/// The pair stage takes no pair while either mark is expected (where
+/// [`EffectorMarks::rough_px`] puts it, distorted) within this of the
+/// image's edge, px: the mark may be out of view and something else in its
+/// place. Images seed 11, cell 873: the gripper's mark 1 had left the image
+/// at its top while the arm carried the part off, and the part's feature 0,
+/// riding rigidly with the gripper 2 px inside the edge where the mark was
+/// expected, made a pair with mark 0 that agreed with the signature and
+/// moved rigidly: labelled mark 1 in two frames. The rough place is a few
+/// pixels off where the projection was not fitted, a mark's blob 2 to 4 px
+/// in radius.
+pub const EDGE_MARGIN_PX: f64 = 6.0;
 
 /// Two pairs confirm a signature only when the gripper moved this much
 /// between them, m (a wrong pair seen twice in one place would agree with
@@ -267,6 +279,9 @@ pub struct EffectorMarks {
     /// The last pair's blobs and the marks' base-frame centres then: while
     /// the arm rests there, its marks are where these blobs were.
     seen_at: Option<([PixelPoint; 2], [[f64; 3]; 2])>,
+    /// The camera's lens and image width and height, px, once told
+    /// ([`Self::seeing`]): where a mark is expected near the edge, no pair.
+    view: Option<(LensModel, [f64; 2])>,
     /// The last pair's signature (angle, rad; scale) and what became of it
     /// (diagnosis: 0 stored unconfirmed, 1 confirmed, 2 agreed, 3 angle or
     /// scale off the confirmed one, 4 not rigid, 5 confirmed afresh).
@@ -307,7 +322,32 @@ impl EffectorMarks {
             last_pair: None,
             seen_at: None,
             last_signature: None,
+            view: None,
         }
+    }
+
+    /// The stage for a camera of `lens` and an image of `size_px` (width,
+    /// height): the pair stage then takes no pair while a mark is expected
+    /// within [`EDGE_MARGIN_PX`] of the image's edge.
+    pub fn seeing(mut self, lens: LensModel, size_px: [u32; 2]) -> Self {
+        self.view = Some((lens, size_px.map(f64::from)));
+        self
+    }
+
+    /// Either mark at `base_m` is expected within [`EDGE_MARGIN_PX`] of the
+    /// image's edge, or beyond it (false where nothing says where it is).
+    fn expected_near_edge(&self, base_m: &[[f64; 3]; 2]) -> bool {
+        let Some((lens, [width, height])) = self.view else {
+            return false;
+        };
+        self.rough_px(base_m).iter().flatten().any(|p| {
+            let [u, v] = lens.distort(*p);
+            let inside = u >= EDGE_MARGIN_PX
+                && v >= EDGE_MARGIN_PX
+                && u <= width - 1.0 - EDGE_MARGIN_PX
+                && v <= height - 1.0 - EDGE_MARGIN_PX;
+            !inside
+        })
     }
 
     /// Where the projection put the marks in the frame just identified,
@@ -505,6 +545,9 @@ impl EffectorMarks {
         let [i, j] = free.as_slice() else {
             return [None, None];
         };
+        if self.expected_near_edge(base_m) {
+            return [None, None];
+        }
         let (Some(Some(a)), Some(Some(b))) = (blobs.get(*i), blobs.get(*j)) else {
             return [None, None];
         };

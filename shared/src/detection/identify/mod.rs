@@ -197,6 +197,8 @@ pub struct MarkDiameters {
 pub struct IdentifySettings {
     /// The camera's intrinsics and lens.
     pub lens: LensModel,
+    /// The image's width and height, px.
+    pub image_size_px: [u32; 2],
     /// `L`, m.
     pub reference_radius_m: f64,
     /// The disc's radius, m.
@@ -360,7 +362,8 @@ impl Identifier {
                 settings.diameters.reference_m,
                 [lens.cx, lens.cy],
                 lens.f_px,
-            ),
+            )
+            .seeing(lens, settings.image_size_px),
             reference_flux: None,
             reference_seen_theta: None,
         }

@@ -9,8 +9,9 @@
 //! smallest eigenvector; it is trusted only when the points span all three
 //! dimensions and the fit explains every one of them.
 
-use nalgebra::{SMatrix, SVector, SymmetricEigen, Vector3};
+use nalgebra::{Matrix3, SMatrix, SVector, SymmetricEigen, Vector3};
 
+use crate::calibration::homography::{pose_from_homography, PlanePose};
 use crate::observation::PixelPoint;
 
 /// Correspondences kept.
@@ -39,6 +40,17 @@ const PLANE_TOLERANCE_M: f64 = 0.01;
 /// by more than the veto's radius costs nothing (the search's sightings
 /// cluster where the view is, the arm passes on).
 const PLANE_COVER_MARGIN_M: f64 = 0.3;
+/// Off the plane, the camera's pose from its map says where a point
+/// projects up to this far above or below it, m: the calibration's poses
+/// lie within 0.4 m of the search's height. Before the DLT is fitted the
+/// poses may show one mark at a time (the arm hides the other), which the
+/// pair stage cannot take, and the gripper's mark lowered over the part
+/// stood in a hidden feature's place (images seed 12, cell 346).
+const PLANE_LIFT_M: f64 = 0.5;
+/// ... and up to this far beyond the held points' reach, m: a camera's pose
+/// extrapolates as a camera does (the arm lowered the marks over the part
+/// 0.8 m from where the search had seen them in that cell).
+const POSE_COVER_MARGIN_M: f64 = 1.2;
 /// Fewest held points for the plane's map (five sightings of two marks:
 /// eight unknowns).
 const MIN_PLANE_POINTS: usize = 10;
@@ -69,6 +81,9 @@ struct PlaneMap {
     /// The pixel normalisation: principal point and focal length, px.
     centre: PixelPoint,
     scale: f64,
+    /// The camera's pose against the plane (its axes the base's, its
+    /// origin at `origin_m` and `z_m`), from the map and the intrinsics.
+    pose: Option<PlanePose>,
 }
 
 impl PlaneMap {
@@ -87,6 +102,43 @@ impl PlaneMap {
         }
         let u = (h11 * dx + h12 * dy + h13) / w * self.scale + self.centre[0];
         let v = (h21 * dx + h22 * dy + h23) / w * self.scale + self.centre[1];
+        (u.is_finite() && v.is_finite()).then_some([u, v])
+    }
+
+    /// The camera's pose against the plane from the map (metric about the
+    /// origin) and the intrinsics.
+    fn pose(&self) -> Option<PlanePose> {
+        let reach = self.reach_m.max(1e-6);
+        let [h11, h12, h13, h21, h22, h23, h31, h32] = self.h;
+        let metric = Matrix3::new(
+            h11 / reach,
+            h12 / reach,
+            h13,
+            h21 / reach,
+            h22 / reach,
+            h23,
+            h31 / reach,
+            h32 / reach,
+            1.0,
+        );
+        pose_from_homography(&metric).ok()
+    }
+
+    /// The pixel of a base-frame point off the plane, by the camera's pose
+    /// (`None` without one, or behind the camera).
+    fn through_pose(&self, base_m: [f64; 3]) -> Option<PixelPoint> {
+        let pose = self.pose.as_ref()?;
+        let on_plane = Vector3::new(
+            base_m[0] - self.origin_m[0],
+            base_m[1] - self.origin_m[1],
+            base_m[2] - self.z_m,
+        );
+        let camera = pose.disc_from_camera.inverse() * (on_plane - pose.camera_centre_disc);
+        if camera.z.is_nan() || camera.z <= 1e-6 {
+            return None;
+        }
+        let u = camera.x / camera.z * self.scale + self.centre[0];
+        let v = camera.y / camera.z * self.scale + self.centre[1];
         (u.is_finite() && v.is_finite()).then_some([u, v])
     }
 }
@@ -298,14 +350,16 @@ impl BaseProjection {
         for (slot, value) in h.iter_mut().zip(solution.iter()) {
             *slot = *value;
         }
-        let map = PlaneMap {
+        let mut map = PlaneMap {
             z_m: mean.z,
             origin_m: origin,
             reach_m: reach,
             h,
             centre: self.centre,
             scale: self.scale,
+            pose: None,
         };
+        map.pose = map.pose();
         let mut sum = 0.0;
         for (p, px) in self.held() {
             let q = map.at(p[0], p[1])?;
@@ -315,20 +369,25 @@ impl BaseProjection {
         (rms.is_finite() && rms <= PLANE_RMS_PX).then_some(map)
     }
 
-    /// Where a base-frame point on the level plane the held points lie on
-    /// projects, by the plane's affine map: `None` when they lie on none,
-    /// or the point is off the plane or beyond the held points' reach (by
-    /// [`PLANE_COVER_MARGIN_M`]). Before the DLT can be fitted this still says
-    /// where the gripper's marks are at the search's height.
+    /// Where a base-frame point projects by the map of the level plane the
+    /// held points lie on: on the plane by its homography, within
+    /// [`PLANE_LIFT_M`] above or below it by the camera's pose the map
+    /// gives. `None` when they lie on no plane, or the point is beyond the
+    /// held points' reach (by [`PLANE_COVER_MARGIN_M`] on the plane,
+    /// [`POSE_COVER_MARGIN_M`] off it) or too far off the plane. Before the DLT can be fitted this still says where the
+    /// gripper's marks are, less sharply than the DLT.
     pub fn plane_px(&self, base_m: [f64; 3]) -> Option<PixelPoint> {
         let map = self.plane.as_ref()?;
         let [dx, dy] = [base_m[0] - map.origin_m[0], base_m[1] - map.origin_m[1]];
-        let on_plane = libm::fabs(base_m[2] - map.z_m) <= PLANE_TOLERANCE_M;
-        let near = libm::hypot(dx, dy) <= map.reach_m + PLANE_COVER_MARGIN_M;
-        if !(on_plane && near) {
-            return None;
+        let out = libm::hypot(dx, dy) - map.reach_m;
+        let off = libm::fabs(base_m[2] - map.z_m);
+        if off <= PLANE_TOLERANCE_M && out <= PLANE_COVER_MARGIN_M {
+            map.at(base_m[0], base_m[1])
+        } else if off <= PLANE_LIFT_M && out <= POSE_COVER_MARGIN_M {
+            map.through_pose(base_m)
+        } else {
+            None
         }
-        map.at(base_m[0], base_m[1])
     }
 
     /// The pinhole pixel of a base-frame point under the fit (`None`
