@@ -154,6 +154,9 @@ pub struct BaseProjection {
     scale: f64,
     fit: Option<(Vector12, [f64; 3])>,
     rms_px: f64,
+    /// The RMS when the DLT was last solved (not a kept fit's over newer
+    /// points, see [`Self::solved_rms_px`]), px.
+    solved_rms_px: f64,
     /// The held points' principal directions (columns) and RMS spreads
     /// along them, m, at the last fit.
     axes: nalgebra::Matrix3<f64>,
@@ -173,6 +176,7 @@ impl BaseProjection {
             scale: if f_px > 0.0 { f_px } else { 1.0 },
             fit: None,
             rms_px: f64::INFINITY,
+            solved_rms_px: f64::INFINITY,
             axes: nalgebra::Matrix3::identity(),
             spreads_m: [0.0; 3],
             plane: None,
@@ -185,6 +189,7 @@ impl BaseProjection {
         self.next = 0;
         self.fit = None;
         self.rms_px = f64::INFINITY;
+        self.solved_rms_px = f64::INFINITY;
         self.plane = None;
     }
 
@@ -201,6 +206,18 @@ impl BaseProjection {
     /// RMS reprojection error of the held points under the fit, px.
     pub fn rms_px(&self) -> f64 {
         self.rms_px
+    }
+
+    /// The RMS of the held points when the DLT was last solved, px. Where a
+    /// refit too thin to solve keeps the last fit, [`Self::rms_px`] is that
+    /// fit's over the newer points: it grows as the arm leaves where the
+    /// fit holds, and a gate scaled by it would grow with it (30 Hz, images
+    /// seed 11, cell 4: the approach's sightings 0.5 to 1.2 px off the kept
+    /// fit were taken, the RMS crept from 0.04 to 3 px, and the pair stage
+    /// that took over paired mark 0 with the part's feature 0 the gripper
+    /// tracked).
+    pub fn solved_rms_px(&self) -> f64 {
+        self.solved_rms_px
     }
 
     /// Adds a correspondence (the oldest goes when full).
@@ -302,6 +319,7 @@ impl BaseProjection {
             return None;
         };
         self.rms_px = rms;
+        self.solved_rms_px = rms;
         Some(rms)
     }
 
@@ -360,6 +378,14 @@ impl BaseProjection {
             pose: None,
         };
         map.pose = map.pose();
+        // The pose must place the held points where they were seen, as the
+        // map does: from points along a line, say, the map's columns are
+        // not a rotation's, and the pose sent the marks 600 px off.
+        if let Some(pose_rms) = self.rms_through_pose(&map) {
+            if pose_rms.is_nan() || pose_rms > PLANE_RMS_PX {
+                map.pose = None;
+            }
+        }
         let mut sum = 0.0;
         for (p, px) in self.held() {
             let q = map.at(p[0], p[1])?;
@@ -367,6 +393,20 @@ impl BaseProjection {
         }
         let rms = libm::sqrt(sum / self.count as f64);
         (rms.is_finite() && rms <= PLANE_RMS_PX).then_some(map)
+    }
+
+    /// The RMS of the held points through `map`'s camera pose, px (`None`
+    /// without a pose; infinite when one projects nowhere).
+    fn rms_through_pose(&self, map: &PlaneMap) -> Option<f64> {
+        map.pose.as_ref()?;
+        let mut sum = 0.0;
+        for (p, px) in self.held() {
+            let Some(q) = map.through_pose(*p) else {
+                return Some(f64::INFINITY);
+            };
+            sum += (q[0] - px[0]) * (q[0] - px[0]) + (q[1] - px[1]) * (q[1] - px[1]);
+        }
+        Some(libm::sqrt(sum / self.count.max(1) as f64))
     }
 
     /// Where a base-frame point projects by the map of the level plane the
