@@ -125,10 +125,10 @@ const REST_M: f64 = 0.002;
 /// The projection labels on its own once it holds this many points.
 const MIN_PROJECTION_POINTS: usize = 20;
 /// A mark the projection labels lies within this many of the projection's
-/// RMS residuals (when the DLT was last solved) of where it predicts the mark, and at most
-/// [`RESIDUAL_FLOOR_PX`] beyond: a mark the arm partly hides is read off
-/// its centre by a few tenths of a pixel, which its light (within 30 % of
-/// its running mean) does not show. Images seed 11: in the cells with the
+/// RMS residuals (when the DLT was last solved) of where it predicts the
+/// mark, and at most [`RESIDUAL_FLOOR_PX`] beyond: a mark the arm partly
+/// hides is read off its centre by a few tenths of a pixel, which its
+/// light (within 30 % of its running mean) does not show. Images seed 11: in the cells with the
 /// largest part errors, mark 0 read 0.3 to 0.4 px off for frames on end
 /// while the arm rested, and the base came 3.5 to 6 mm off, 9 to 16 times
 /// its sigma. With this gate the part's error at the grasp over the 1,000
