@@ -165,7 +165,6 @@ impl PickController {
             plan_lead_s: settings.plan_budget_s,
             calibration_rounds: 0,
             early: EarlyFinish::new(),
-            preliminary_asked: false,
             estimate_serial: 0,
             refresh: Refresh::new(),
             qdd_commanded: JointVector::zeros(),

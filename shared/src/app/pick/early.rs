@@ -21,23 +21,19 @@
 use super::settings::{at_most, PickSettings};
 use crate::protocol::CalibrationReport;
 
-/// The early estimates of one calibration.
+/// The early estimates of one calibration (the job slot says whether one
+/// is in flight: `JobKind::Early`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) struct EarlyFinish {
-    /// The job in flight is an early estimate.
-    asked: bool,
     /// An early estimate met the target: the calibration ends with the
     /// move in progress.
     met: bool,
 }
 
 impl EarlyFinish {
-    /// Nothing asked for.
+    /// Nothing met yet.
     pub(super) const fn new() -> Self {
-        Self {
-            asked: false,
-            met: false,
-        }
+        Self { met: false }
     }
 
     /// Whether to ask for an estimate as the arm leaves for pose `next` of
@@ -57,25 +53,9 @@ impl EarlyFinish {
         slot_idle && lowest_shown && !self.met && next >= usize::from(after.max(1)) && next < poses
     }
 
-    /// An early estimate is in flight.
-    pub(super) fn asked(&mut self) {
-        self.asked = true;
-    }
-
-    /// Whether the job in flight is an early estimate.
-    pub(super) fn in_flight(&self) -> bool {
-        self.asked
-    }
-
     /// The early estimate came (or failed): `met` when it meets the target.
     pub(super) fn landed(&mut self, met: bool) {
-        self.asked = false;
         self.met = met;
-    }
-
-    /// The final estimate's job replaced the early one (see `JobSlot::open`).
-    pub(super) fn forget(&mut self) {
-        self.asked = false;
     }
 
     /// Whether an early estimate met the target.
@@ -133,10 +113,10 @@ mod tests {
         );
         assert!(!early.due(false, 4, 8, 3, true), "the slot is busy");
         let mut met = early;
-        met.asked();
-        assert!(met.in_flight());
+        met.landed(false);
+        assert!(!met.met() && met.due(true, 5, 8, 3, true));
         met.landed(true);
-        assert!(!met.in_flight() && met.met());
+        assert!(met.met());
         assert!(!met.due(true, 5, 8, 3, true), "met: nothing more to ask");
     }
 }

@@ -8,9 +8,28 @@
 
 use super::handoff::{JobOutcome, JobRequest, JobResult, JobTicket};
 
+/// What a job is for: the pick acts on its outcome by it, and a job opened
+/// over another replaces it, kind and all.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum JobKind {
+    /// The preliminary estimate asked for as the search turns back over
+    /// the marks: it lands in `EstimatePreliminary`, or, refused, is asked
+    /// for again with the arm at rest.
+    PreliminaryOnTheWay,
+    /// An estimate asked for with the arm at rest (preliminary or final).
+    Estimate,
+    /// An early estimate asked for at a calibration pose (see `early`).
+    Early,
+    /// The intercept's refresh of the estimate (see `refresh`).
+    Refresh,
+    /// An intercept plan.
+    Plan,
+}
+
 /// A job in flight: requested, maybe computed, applied at `apply_at_s`.
 #[derive(Debug, Clone, PartialEq)]
 struct Job {
+    kind: JobKind,
     job_id: u32,
     outcome: Option<JobOutcome>,
     apply_at_s: f32,
@@ -37,12 +56,19 @@ impl JobSlot {
         }
     }
 
-    /// Opens a job for `request`, its outcome due at `apply_at_s`; the ticket
-    /// goes to the worker. Any job in flight is forgotten.
-    pub(super) fn open(&mut self, request: JobRequest, apply_at_s: f32) -> JobTicket {
+    /// Opens a job of `kind` for `request`, its outcome due at
+    /// `apply_at_s`; the ticket goes to the worker. Any job in flight is
+    /// forgotten.
+    pub(super) fn open(
+        &mut self,
+        request: JobRequest,
+        kind: JobKind,
+        apply_at_s: f32,
+    ) -> JobTicket {
         let job_id = self.next_job_id;
         self.next_job_id = self.next_job_id.wrapping_add(1);
         self.job = Some(Job {
+            kind,
             job_id,
             outcome: None,
             apply_at_s,
@@ -108,6 +134,12 @@ impl JobSlot {
         self.job.is_none()
     }
 
+    /// The slot holds a job of `kind` (in flight, or its outcome not yet
+    /// taken).
+    pub(super) fn holds(&self, kind: JobKind) -> bool {
+        self.job.as_ref().is_some_and(|job| job.kind == kind)
+    }
+
     /// Forgets the job in flight: its outcome, when it comes, is ignored.
     pub(super) fn cancel(&mut self) {
         self.job = None;
@@ -152,7 +184,7 @@ mod tests {
     #[test]
     fn an_outcome_is_applied_at_its_due_time_and_not_before() {
         let mut slot = JobSlot::new(7);
-        let ticket = slot.open(request(), 2.0);
+        let ticket = slot.open(request(), JobKind::Estimate, 2.0);
         assert_eq!((ticket.session, ticket.job_id), (7, 1));
         assert!(!slot.awaits(1.0));
         assert!(slot.awaits(2.0));
@@ -165,17 +197,36 @@ mod tests {
         assert!(slot.is_idle());
     }
 
+    /// The slot says what its job is for until the outcome is taken, the
+    /// job is cancelled or another replaces it.
+    #[test]
+    fn the_slot_holds_its_jobs_kind_until_it_is_taken_or_replaced() {
+        let mut slot = JobSlot::new(7);
+        assert!(!slot.holds(JobKind::Early));
+        let _ = slot.open(request(), JobKind::Early, 2.0);
+        assert!(slot.holds(JobKind::Early) && !slot.holds(JobKind::Estimate));
+        assert!(!slot.accept(&result(7, 1), 1.0));
+        assert!(slot.holds(JobKind::Early), "came, not yet taken");
+        assert!(slot.take_ready(2.0).is_some());
+        assert!(!slot.holds(JobKind::Early));
+        let _ = slot.open(request(), JobKind::PreliminaryOnTheWay, 3.0);
+        let _ = slot.open(request(), JobKind::Estimate, 4.0);
+        assert!(!slot.holds(JobKind::PreliminaryOnTheWay) && slot.holds(JobKind::Estimate));
+        slot.cancel();
+        assert!(!slot.holds(JobKind::Estimate));
+    }
+
     #[test]
     fn results_of_another_session_or_job_are_ignored_and_late_ones_counted() {
         let mut slot = JobSlot::new(7);
-        let _ = slot.open(request(), 2.0);
+        let _ = slot.open(request(), JobKind::Estimate, 2.0);
         assert!(!slot.accept(&result(6, 1), 1.0));
         assert!(!slot.accept(&result(7, 2), 1.0));
         assert_eq!(slot.take_ready(3.0), None);
         assert!(slot.accept(&result(7, 1), 3.0));
         assert_eq!(slot.ready_late_by_s(3.5), Some(1.0));
         assert!(slot.take_ready(3.5).is_some());
-        let second = slot.open(request(), 5.0);
+        let second = slot.open(request(), JobKind::Plan, 5.0);
         assert_eq!(second.job_id, 2);
         slot.cancel();
         assert!(!slot.accept(&result(7, 2), 4.0));

@@ -71,7 +71,7 @@ use self::cell::Cell;
 use self::early::EarlyFinish;
 use self::estimate::CellEstimate;
 use self::handoff::{ControlEvent, JobOutcome, JobRequest};
-use self::job_slot::JobSlot;
+use self::job_slot::{JobKind, JobSlot};
 use self::jobs::{ConveyorSnapshot, MAX_CALIBRATION_POSES, SAME_HEIGHT_M};
 use self::motion::Motion;
 use self::pace::CalibrationPose;
@@ -238,9 +238,6 @@ pub struct PickController {
     calibration_rounds: u8,
     /// The early estimates of the calibration (see [`early`]).
     early: EarlyFinish,
-    /// The preliminary estimate was asked for as the search went back over
-    /// the marks.
-    preliminary_asked: bool,
     /// The final calibration was accepted (the pick may go down to the part).
     calibration_accepted: bool,
     /// The earliest time of the next intercept plan's request.
@@ -388,9 +385,10 @@ impl PickController {
         self.motion.duration_s().unwrap_or(0.0) - in_step
     }
 
-    /// Asks the worker for `request`, its outcome applied `budget_s` from now.
-    fn request(&mut self, request: JobRequest, budget_s: f32) {
-        let ticket = self.jobs.open(request, self.now_s + budget_s);
+    /// Asks the worker for `request` (a job of `kind`), its outcome applied
+    /// `budget_s` from now.
+    fn request(&mut self, request: JobRequest, kind: JobKind, budget_s: f32) {
+        let ticket = self.jobs.open(request, kind, self.now_s + budget_s);
         self.post(ControlEvent::Job(ticket));
     }
 
@@ -480,8 +478,11 @@ impl PickController {
                             && self.jobs.is_idle()
                         {
                             let request = self.estimate_request(true, target);
-                            self.request(request, settings.estimate_budget_s);
-                            self.preliminary_asked = true;
+                            self.request(
+                                request,
+                                JobKind::PreliminaryOnTheWay,
+                                settings.estimate_budget_s,
+                            );
                         }
                         motion
                     }
@@ -506,15 +507,14 @@ impl PickController {
             Step::EstimatePreliminary | Step::EstimateFinal => {
                 self.hold_here();
                 let preliminary = step == Step::EstimatePreliminary;
-                if preliminary && self.preliminary_asked {
+                if preliminary && self.jobs.holds(JobKind::PreliminaryOnTheWay) {
                     // Asked for on the way back; it lands here.
                     return;
                 }
-                // An early estimate still in flight is forgotten: this one
+                // An early estimate still in flight is replaced: this one
                 // has every pose's frames.
-                self.early.forget();
                 let request = self.estimate_request(preliminary, self.resting_point());
-                self.request(request, settings.estimate_budget_s);
+                self.request(request, JobKind::Estimate, settings.estimate_budget_s);
                 return;
             }
             Step::CalibrateMove(i) => match self.poses.get(usize::from(i)).copied() {
@@ -843,17 +843,16 @@ impl PickController {
     /// accepted and the pick locates the part.
     fn on_estimate(&mut self, in_step: f32) {
         let preliminary = self.step == Step::EstimatePreliminary;
+        let on_the_way = self.jobs.holds(JobKind::PreliminaryOnTheWay);
         match self.jobs.take_ready(self.now_s) {
             // Asked for on the way back, from the sightings before it, and
             // refused: asked again from all of them, the arm at rest.
-            Some(JobOutcome::Estimate(Err(_))) if preliminary && self.preliminary_asked => {
-                self.preliminary_asked = false;
+            Some(JobOutcome::Estimate(Err(_))) if preliminary && on_the_way => {
                 let request = self.estimate_request(true, self.resting_point());
-                self.request(request, self.settings.estimate_budget_s);
+                self.request(request, JobKind::Estimate, self.settings.estimate_budget_s);
                 self.step_started_s = self.now_s;
             }
             Some(JobOutcome::Estimate(Ok((estimate, poses)))) => {
-                self.preliminary_asked = false;
                 self.estimate = Some(estimate);
                 self.estimate_serial = self.estimate_serial.wrapping_add(1);
                 let unsure = !self.sure_to_grasp(&estimate.report);
@@ -931,9 +930,8 @@ impl PickController {
             lowest_shown,
         );
         if due {
-            self.early.asked();
             let request = self.estimate_request(false, self.resting_point());
-            self.request(request, self.settings.estimate_budget_s);
+            self.request(request, JobKind::Early, self.settings.estimate_budget_s);
         }
     }
 
@@ -942,7 +940,7 @@ impl PickController {
     /// (too few sightings yet, the part's path out of reach) only means the
     /// poses go on to the final estimate, which judges for itself.
     fn take_early_estimate(&mut self) {
-        if !self.early.in_flight() {
+        if !self.jobs.holds(JobKind::Early) {
             return;
         }
         match self.jobs.take_ready(self.now_s) {
@@ -969,7 +967,7 @@ impl PickController {
         if self.jobs.is_idle() && self.refresh.due(remaining_s, lead_s, track_s) {
             self.refresh.asked();
             let request = self.estimate_request(false, self.resting_point());
-            self.request(request, lead_s);
+            self.request(request, JobKind::Refresh, lead_s);
         }
     }
 
@@ -1105,7 +1103,7 @@ impl PickController {
                 },
                 estimate,
             };
-            self.request(request, self.plan_lead_s);
+            self.request(request, JobKind::Plan, self.plan_lead_s);
         }
     }
 }
