@@ -336,19 +336,18 @@ impl EffectorMarks {
 
     /// Each of the pair's blobs (`pair`: mark 0's and mark 1's, index and
     /// pixel) is, of all the frame's blobs, the nearest to where its mark
-    /// is roughly expected ([`Self::rough_px`]; true where nothing says).
+    /// is roughly expected (`expected`: [`Self::rough_px`]; true where
+    /// nothing says).
     /// 30 Hz, images seed 11, cell 4: the gripper over the part it tracked,
     /// mark 1 partly hidden and not free, the part's feature 0 6 px from it
     /// and 6 px from where the mark was expected made the frame's one pair
     /// with mark 0, which agreed with the signature and moved rigidly; mark
     /// 1's own blob lay 0.4 px from where it was expected.
     fn nearest_where_expected(
-        &self,
         blobs: &[Option<EffectorCandidate>],
-        base_m: &[[f64; 3]; 2],
+        expected: &[Option<PixelPoint>; 2],
         pair: [(usize, PixelPoint); 2],
     ) -> bool {
-        let expected = self.rough_px(base_m);
         pair.iter().zip(expected.iter()).all(|((index, pixel), q)| {
             let Some(q) = q else {
                 return true;
@@ -363,13 +362,14 @@ impl EffectorMarks {
         })
     }
 
-    /// Either mark at `base_m` is expected within [`EDGE_MARGIN_PX`] of the
-    /// image's edge, or beyond it (false where nothing says where it is).
-    fn expected_near_edge(&self, base_m: &[[f64; 3]; 2]) -> bool {
+    /// Either mark is expected (`expected`: [`Self::rough_px`]) within
+    /// [`EDGE_MARGIN_PX`] of the image's edge, or beyond it (false where
+    /// nothing says where it is).
+    fn expected_near_edge(&self, expected: &[Option<PixelPoint>; 2]) -> bool {
         let Some((lens, [width, height])) = self.view else {
             return false;
         };
-        self.rough_px(base_m).iter().flatten().any(|p| {
+        expected.iter().flatten().any(|p| {
             let [u, v] = lens.distort(*p);
             let inside = u >= EDGE_MARGIN_PX
                 && v >= EDGE_MARGIN_PX
@@ -574,7 +574,8 @@ impl EffectorMarks {
         let [i, j] = free.as_slice() else {
             return [None, None];
         };
-        if self.expected_near_edge(base_m) {
+        let expected = self.rough_px(base_m);
+        if self.expected_near_edge(&expected) {
             return [None, None];
         }
         let (Some(Some(a)), Some(Some(b))) = (blobs.get(*i), blobs.get(*j)) else {
@@ -594,7 +595,7 @@ impl EffectorMarks {
         if m1.flux <= 0.0 || !within(m0.flux / m1.flux, self.light_ratio, RATIO_TOLERANCE) {
             return [None, None];
         }
-        if !self.nearest_where_expected(blobs, base_m, [(i0, m0.pixel), (i1, m1.pixel)]) {
+        if !Self::nearest_where_expected(blobs, &expected, [(i0, m0.pixel), (i1, m1.pixel)]) {
             return [None, None];
         }
         if !self.both_whole(m0.flux, m1.flux) {
