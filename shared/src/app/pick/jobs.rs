@@ -109,7 +109,11 @@ pub fn calibration_poses(
                 if !in_view || !within_reach(robot, &pose.translation.vector) {
                     continue;
                 }
-                let seed = waist_turned_towards(robot, &q, point.azimuth_rad);
+                let seed = wrist_turned_to(
+                    robot,
+                    &waist_turned_towards(robot, &q, point.azimuth_rad),
+                    yaw,
+                );
                 let Ok(solution) = solve_ik(robot, &pose, &seed, &ik) else {
                     continue;
                 };
@@ -273,6 +277,34 @@ fn in_visiting_order(poses: &mut [ArcPoint<f32>], flange: Vector3<f32>) {
             }
         }
     }
+}
+
+/// `q` with joint 6 turned so that the gripper's yaw becomes `yaw` (pointing
+/// down, the yaw turns against joint 6), to the angle of the three a turn
+/// apart that lies nearest the middle of its range: the inverse kinematics
+/// only follows its seed, and from a search that ended with the wrist turned
+/// half a turn (`SEARCH_WRIST_TURNS_RAD`) it found no pose at all, joint 6
+/// seeded half a turn from every candidate's (images, seed 11, cell 264:
+/// `DiscOutOfReach`), or past its stop when turned back the wrong way.
+fn wrist_turned_to(robot: &Puma560<f32>, q: &JointVector<f32>, yaw: f32) -> JointVector<f32> {
+    let rotation = robot.forward_kinematics(q).rotation.to_rotation_matrix();
+    let present = libm::atan2f(rotation[(1, 0)], rotation[(0, 0)]);
+    let limits = robot.joint_limits();
+    let middle = 0.5 * (limits.position_min.b + limits.position_max.b);
+    let turned = q.b - wrap_pi(yaw - present);
+    let tau = core::f32::consts::TAU;
+    let nearest = [turned - tau, turned, turned + tau]
+        .into_iter()
+        .fold(turned, |best, q6| {
+            if libm::fabsf(q6 - middle) < libm::fabsf(best - middle) {
+                q6
+            } else {
+                best
+            }
+        });
+    let mut seed = *q;
+    seed.b = nearest;
+    seed
 }
 
 /// `q` with the waist turned so that the flange's azimuth becomes `azimuth`,
@@ -499,6 +531,40 @@ mod tests {
         let limits = robot.joint_limits();
         assert!(seed.x >= limits.position_min.x && seed.x <= limits.position_max.x);
         assert!(reached(&seed), "seed {seed:?}");
+    }
+
+    /// The arm as cell 11000264's search left it through images, after its
+    /// third round: the wrist turned half a turn (joint 6 at -172 degrees).
+    #[test]
+    fn a_pose_is_found_from_a_search_that_turned_the_wrist_half_a_turn() {
+        let robot = Puma560::<f32>::new();
+        let q_search_end = JointVector::from([1.096, 1.439, -3.667, 0.0, -0.913, -3.013]);
+        let azimuth = 0.73_f32;
+        let tool = Vector3::new(0.5 * azimuth.cos(), 0.5 * azimuth.sin(), 0.45);
+        // The yaw every calibration pose is shown at: the start's, with the waist.
+        let yaw = 4.11_f32;
+        let pose = flange_pose(&tool, yaw);
+        let ik = IkConfig::default();
+        let reached = |seed: &JointVector<f32>| {
+            solve_ik(&robot, &pose, seed, &ik)
+                .is_ok_and(|q| inside_with_margin(&robot, &q) && well_conditioned(&robot, &q))
+        };
+        let waist_only = waist_turned_towards(&robot, &q_search_end, azimuth);
+        assert!(!reached(&waist_only));
+        let seed = wrist_turned_to(&robot, &waist_only, yaw);
+        let limits = robot.joint_limits();
+        assert!(seed[5] >= limits.position_min[5] && seed[5] <= limits.position_max[5]);
+        assert!(reached(&seed), "seed {seed:?}");
+        // The seed's yaw is the pose's.
+        let rotation = robot
+            .forward_kinematics(&seed)
+            .rotation
+            .to_rotation_matrix();
+        let seed_yaw = libm::atan2f(rotation[(1, 0)], rotation[(0, 0)]);
+        assert!(
+            wrap_pi(seed_yaw - yaw).abs() < 0.05,
+            "{seed_yaw} against {yaw}"
+        );
     }
 
     #[test]

@@ -726,9 +726,14 @@ impl PickController {
                     // edge): back over where, to hold there and look.
                     self.route.return_to(most_seen);
                     self.enter(Step::SearchReturn);
+                } else if self.route.next_search_round() {
+                    // Every radius swept and the camera never saw the
+                    // gripper's marks together: again, the wrist turned.
+                    self.enter(Step::SearchShift(0));
                 } else {
-                    // Every radius swept over joint 1's whole range, and the
-                    // camera never saw the gripper: it cannot, from where it stands.
+                    // Every radius swept over joint 1's whole range, the
+                    // wrist turned every way, and the camera never saw the
+                    // gripper: it cannot, from where it stands.
                     self.raise(self.search_failure());
                 }
             }
@@ -745,9 +750,13 @@ impl PickController {
                     self.enter(Step::EstimatePreliminary);
                 } else if next < settings.search_look_passes {
                     self.enter(Step::SearchLook(next));
+                } else if self.route.next_search_round() {
+                    // Passed slowly over where the marks were seen, and
+                    // still too few: the sweeps again, the wrist turned.
+                    self.enter(Step::SearchShift(0));
                 } else {
                     // Passed slowly over where the marks were seen, and
-                    // still too few.
+                    // still too few, in the last round.
                     self.raise(self.search_failure());
                 }
             }

@@ -8,7 +8,7 @@ use nalgebra::Vector3;
 
 use super::jobs::yaw_at_azimuth;
 use super::motion::{height_profile, Motion};
-use super::search::{SearchError, SearchPlan, MAX_SEARCH_LEGS};
+use super::search::{SearchError, SearchPlan, MAX_SEARCH_LEGS, SEARCH_WRIST_TURNS_RAD};
 use super::settings::PickSettings;
 use super::step::Step;
 use crate::angle::wrap_pi;
@@ -29,6 +29,12 @@ pub(super) struct Route {
     search: SearchPlan,
     /// The sweep the search is in (or ended with).
     sweep: u8,
+    /// The round of the search: the wrist's turn from its start's yaw
+    /// (`SEARCH_WRIST_TURNS_RAD`).
+    search_round: u8,
+    /// The way the wrist turns in the search's later rounds: +1 turns the
+    /// yaw up (joint 6 down, gripper pointing down), -1 down.
+    search_turn_sign: f32,
     /// Sightings of the marks during each sweep (and the step out to it).
     seen_per_sweep: [u16; MAX_SEARCH_LEGS],
     /// The sum of the unit vectors towards the flange at those sightings.
@@ -58,6 +64,8 @@ impl Route {
             waist_centre_azimuth: 0.0,
             search: SearchPlan::empty(),
             sweep: 0,
+            search_round: 0,
+            search_turn_sign: 1.0,
             seen_per_sweep: [0; MAX_SEARCH_LEGS],
             seen_direction_per_sweep: [[0.0; 2]; MAX_SEARCH_LEGS],
             transfer_z: 0.0,
@@ -80,6 +88,10 @@ impl Route {
         let middle = 0.5 * (limits.position_min.x + limits.position_max.x);
         self.waist_centre_azimuth = start_pose.azimuth_rad + wrap_pi(middle - q_start.x);
         self.search = SearchPlan::new(robot, q_start, flange_start, travel_z(settings), settings)?;
+        // With the gripper pointing down, the yaw turns against joint 6: the
+        // turns take joint 6 away from its nearer stop (a half turn from
+        // anywhere in its +-266 degrees leaves 86 degrees at least).
+        self.search_turn_sign = if q_start.b > 0.0 { 1.0 } else { -1.0 };
         Ok(())
     }
 
@@ -123,14 +135,37 @@ impl Route {
     }
 
     /// The search's point at `radius` and `azimuth`, at travel height, the
-    /// wrist as at the start.
+    /// wrist as at the start turned by the round's turn.
     fn search_point(&self, radius: f32, azimuth: f32) -> ArcPoint<f32> {
         ArcPoint {
             radius_m: radius,
             azimuth_rad: azimuth,
             z_m: self.search.flange_z_m(),
-            yaw_rad: yaw_at_azimuth(&self.start_pose, azimuth),
+            yaw_rad: yaw_at_azimuth(&self.start_pose, azimuth) + self.search_wrist_turn(),
         }
+    }
+
+    /// The wrist's turn from its start's yaw in the search's present round, rad.
+    pub(super) fn search_wrist_turn(&self) -> f32 {
+        self.search_turn_sign
+            * SEARCH_WRIST_TURNS_RAD
+                .get(usize::from(self.search_round))
+                .copied()
+                .unwrap_or(0.0)
+    }
+
+    /// Starts the search's next round (its sweeps again from the first, the
+    /// wrist turned further), or false when the last has run.
+    pub(super) fn next_search_round(&mut self) -> bool {
+        let next = self.search_round.saturating_add(1);
+        if usize::from(next) >= SEARCH_WRIST_TURNS_RAD.len() {
+            return false;
+        }
+        self.search_round = next;
+        self.sweep = 0;
+        self.seen_per_sweep = [0; MAX_SEARCH_LEGS];
+        self.seen_direction_per_sweep = [[0.0; 2]; MAX_SEARCH_LEGS];
+        true
     }
 
     /// The search is in sweep `leg`.
@@ -331,4 +366,68 @@ const LOOK_MIN_RADIUS_M: f32 = 0.1;
 /// The azimuth equivalent to `azimuth` within half a turn of `centre`.
 pub(super) fn azimuth_within_half_a_turn(centre: f32, azimuth: f32) -> f32 {
     centre + wrap_pi(azimuth - centre)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planning::ready_posture;
+
+    fn started_with_joint_6(q6: f32) -> (Route, Puma560<f32>) {
+        let robot = Puma560::<f64>::new().cast::<f32>();
+        let mut q = ready_posture::<f32>();
+        q[5] = q6;
+        let flange = robot.forward_kinematics(&q).translation.vector;
+        let mut route = Route::new();
+        route
+            .start_from(
+                ArcPoint::from_position(&flange, 0.3),
+                &robot,
+                &q,
+                &flange,
+                &PickSettings::default(),
+            )
+            .unwrap();
+        (route, robot)
+    }
+
+    #[test]
+    fn each_round_of_the_search_turns_the_wrist_and_the_last_ends_it() {
+        // Joint 6 anywhere in its range, near either stop or between.
+        for q6 in [-4.5_f32, -1.0, 0.0, 1.0, 4.5] {
+            let (mut route, robot) = started_with_joint_6(q6);
+            let limits = robot.joint_limits();
+            let first = route.sweep_start(0).unwrap();
+            assert_eq!(route.search_wrist_turn(), 0.0);
+            route.seen_in(2, [1.0, 0.0]);
+            let mut rounds = 1;
+            while route.next_search_round() {
+                rounds += 1;
+                // From the first sweep again, nothing seen yet in this round.
+                assert_eq!(route.sweep(), 0);
+                assert_eq!(route.most_seen_sweep(), None);
+                let turn = route.search_wrist_turn();
+                assert_eq!(turn.abs(), SEARCH_WRIST_TURNS_RAD[rounds - 1], "q6 {q6}");
+                let start = route.sweep_start(0).unwrap();
+                assert_eq!(start.azimuth_rad, first.azimuth_rad);
+                assert!((start.yaw_rad - first.yaw_rad - turn).abs() < 1e-6);
+                // The yaw turns against joint 6 (gripper down): it stays
+                // 80 degrees inside its stops.
+                let q6_turned = q6 - turn;
+                let spare = 80f32.to_radians();
+                assert!(
+                    q6_turned - spare > limits.position_min[5]
+                        && q6_turned + spare < limits.position_max[5],
+                    "q6 {q6}, turn {turn}"
+                );
+            }
+            assert_eq!(rounds, SEARCH_WRIST_TURNS_RAD.len());
+            // After the last round no other starts, and the wrist stays turned.
+            assert!(!route.next_search_round());
+            assert_eq!(
+                route.search_wrist_turn().abs(),
+                SEARCH_WRIST_TURNS_RAD[rounds - 1]
+            );
+        }
+    }
 }

@@ -10,7 +10,9 @@
 //! The camera frames the disc (the paper's A4), so its view at travel height
 //! is wider than that step and a disc the arm can serve is crossed by some
 //! sweep. The first sweep in which the camera has seen the marks often enough
-//! ends the search; after the last one the pick stops (`EffectorNotSeen`).
+//! ends the search. When the last one ends with none seen, the sweeps run
+//! again with the wrist turned ([`SEARCH_WRIST_TURNS_RAD`]); after the last
+//! round the pick stops (`EffectorNotSeen`).
 
 use nalgebra::Vector3;
 
@@ -21,6 +23,18 @@ use crate::robot::{JointVector, Puma560};
 
 /// Most sweeps of one search (radii of the band the arm reaches).
 pub const MAX_SEARCH_LEGS: usize = 4;
+
+/// How far the wrist turns about the vertical in each round of the search,
+/// from its start's yaw, rad. The marks lie across the wrist, and seen from
+/// the side the wrist hides one of them: through images the vision stage
+/// learns the marks only from frames that show both at once, so a camera that
+/// sees the gripper from its hidden side sees it in vain (images, seed 13: 12
+/// cells of 1,000 found no mark that ideal points showed, 10 of them after a
+/// turn). A quarter turn, then a half turn, the same way (away from joint 6's
+/// nearer stop: `Route::start_from`): each shows the camera another side of
+/// the wrist.
+pub const SEARCH_WRIST_TURNS_RAD: [f32; 3] =
+    [0.0, core::f32::consts::FRAC_PI_2, core::f32::consts::PI];
 
 /// The search keeps this much further from the base axis than a grasp may
 /// come (the shoulder singularity, the robot's column), m.
