@@ -147,6 +147,7 @@ const NEIGHBOUR_LIGHT: f64 = 1.5;
 /// campaign seed 7, trial 148: the key, alone while its neighbours were
 /// young, was taken for the reference.
 const KEY_NEIGHBOURS: usize = 2;
+
 /// A known disc whose reference has not been seen while the disc turned
 /// this far, rad, is forgotten: the reference was wrong (its mark gone
 /// with the part) or the disc is to be found again; else a wrong first
@@ -444,7 +445,7 @@ impl Identifier {
         // 2. Association, unique both ways.
         let (ambiguous, near_disc_mark) = self.associate(theta, &points, &mut report);
         // 3-5. Disc marks.
-        self.find_reference(theta);
+        self.find_reference(theta, &points);
         self.find_centre();
         self.find_features(theta);
         // 6. Effector marks.
@@ -811,26 +812,79 @@ impl Identifier {
                 && Self::turning(other)
                 && Self::in_band(other.track.mean_flux(), candidate_flux, NEIGHBOUR_LIGHT)
         });
-        let d = self.settings.diameters;
-        let key_with_plain = match d.part_key_m {
-            Some(key_m) if key_m > 0.0 && self.settings.part_feature_count > KEY_NEIGHBOURS => {
-                let plain_share = (d.part_feature_m / key_m) * (d.part_feature_m / key_m);
-                self.tracks
-                    .iter()
-                    .filter(|other| {
-                        near(other)
-                            && Self::in_band(
-                                other.track.mean_flux(),
-                                candidate_flux * plain_share,
-                                FEATURE_LIKE_LIGHT,
-                            )
-                    })
-                    .count()
-                    >= KEY_NEIGHBOURS
-            }
-            _ => false,
-        };
+        let key_with_plain = self.plain_share().is_some_and(|plain_share| {
+            self.tracks
+                .iter()
+                .filter(|other| {
+                    near(other)
+                        && Self::in_band(
+                            other.track.mean_flux(),
+                            candidate_flux * plain_share,
+                            FEATURE_LIKE_LIGHT,
+                        )
+                })
+                .count()
+                >= KEY_NEIGHBOURS
+        });
         alike || key_with_plain
+    }
+
+    /// With a key mark, [`KEY_NEIGHBOURS`] of this frame's blobs near
+    /// `candidate` (not its own) send a plain feature's light against it,
+    /// whatever their tracks: a part's plain features a few pixels apart,
+    /// moving faster than a young track's gate, start new tracks frame after
+    /// frame and never turn long enough to count, and the key among them, of
+    /// the reference's size and light, looks alone (images, seed 13, cell
+    /// 955: the key taken for the reference in 6 frames). The blobs of still
+    /// marks (the disc's centre) and of the gripper's known marks are left
+    /// out. Only the key's test, not the like light's: a blob of like
+    /// light near the true reference may be a gripper mark not yet known
+    /// (seed 12, cell 382: the reference refused while the gripper passed,
+    /// until the arm hid the key's neighbours and the key, alone, was
+    /// taken). This only keeps a candidate from being chosen, never resets
+    /// a reference found.
+    fn has_plain_blobs_near(
+        &self,
+        candidate: &Followed,
+        disc: &DiscImage,
+        points: &[Option<(PixelPoint, f64, f64)>],
+    ) -> bool {
+        let Some(share) = self.plain_share() else {
+            return false;
+        };
+        let reach_px = NEIGHBOUR_M * disc.scale_px_per_m;
+        let p = candidate.track.latest.1;
+        let plain_flux = candidate.track.mean_flux() * share;
+        let left_out = |i: usize| {
+            candidate.blob == Some(i)
+                || self.tracks.iter().any(|f| {
+                    f.blob == Some(i)
+                        && (f.on_arm || self.still(f) || f.label == Some(MarkLabel::DiscCentre))
+                })
+        };
+        points
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !left_out(*i))
+            .filter_map(|(_, point)| *point)
+            .filter(|(q, _, flux)| {
+                libm::hypot(q[0] - p[0], q[1] - p[1]) <= reach_px
+                    && Self::in_band(*flux, plain_flux, FEATURE_LIKE_LIGHT)
+            })
+            .count()
+            >= KEY_NEIGHBOURS
+    }
+
+    /// A plain feature's light against the key's, where the part has a key
+    /// mark and [`KEY_NEIGHBOURS`] plain ones besides.
+    fn plain_share(&self) -> Option<f64> {
+        let d = self.settings.diameters;
+        match d.part_key_m {
+            Some(key_m) if key_m > 0.0 && self.settings.part_feature_count > KEY_NEIGHBOURS => {
+                Some((d.part_feature_m / key_m) * (d.part_feature_m / key_m))
+            }
+            _ => None,
+        }
     }
 
     /// Forgets the disc stage (a reference found wrong): the disc's image,
@@ -852,7 +906,7 @@ impl Identifier {
         self.reference_seen_theta = None;
     }
 
-    fn find_reference(&mut self, theta: f64) {
+    fn find_reference(&mut self, theta: f64, points: &[Option<(PixelPoint, f64, f64)>]) {
         let d = self.settings.diameters;
         if let Some(reference) = self
             .tracks
@@ -942,7 +996,11 @@ impl Identifier {
                     ) <= gate
                     && self.reference_light(candidate.track.mean_flux(), other.track.mean_flux())
             });
-            if !whole_fits || !centred || self.has_like_neighbour(candidate, &disc) {
+            if !whole_fits
+                || !centred
+                || self.has_like_neighbour(candidate, &disc)
+                || self.has_plain_blobs_near(candidate, &disc, points)
+            {
                 continue;
             }
             let mut features = 0;
