@@ -189,17 +189,28 @@ fn a_search_that_never_saw_the_discs_reference_says_so() {
     // mark at a small image scale and the disc is never identified, in any
     // of the search's three rounds, so no frame carries the reference (nor,
     // labelled against the disc, the gripper's pair). The stop names the
-    // disc; a cell whose disc was seen and whose gripper's marks never were
-    // together (images seed 13, cell 171), with the wrist turned every way,
-    // keeps `EffectorNotSeen`. (Cell 264 of seed 11, the disc's other such
-    // cell, identifies it in the third round and picks.)
-    for (seed, cause) in [
-        (11_000_460, FaultCause::DiscNotSeen),
-        (13_000_171, FaultCause::EffectorNotSeen),
-    ] {
-        let run = pick_through_images(seed);
-        assert_eq!(run.result, PickResult::Fault(cause), "seed {seed}");
-    }
+    // disc. (Cell 264 of seed 11, the disc's other such cell, identifies it
+    // in the third round and picks.)
+    let run = pick_through_images(11_000_460);
+    assert_eq!(run.result, PickResult::Fault(FaultCause::DiscNotSeen));
+    // A cell whose disc is seen and whose gripper's marks never are (marks
+    // too small for the camera to resolve, with the wrist turned every way)
+    // keeps `EffectorNotSeen`, after the search's last round.
+    let mut experiment = PickScenarioFile::default_experiment("turning").unwrap();
+    experiment.camera.source = CameraSource::Images;
+    experiment.image.effector_mark_radii_m = [0.0008, 0.0006];
+    let run = run_pick_in_process(&experiment, 1).unwrap();
+    assert_eq!(run.result, PickResult::Fault(FaultCause::EffectorNotSeen));
+    let vision = run.vision.expect("the run went through images");
+    assert!(
+        vision.labels > vision.frames,
+        "the disc was seen: {vision:?}"
+    );
+    assert!(
+        run.duration_s > 90.0,
+        "{} s: the three rounds",
+        run.duration_s
+    );
 }
 
 #[test]
@@ -301,6 +312,6 @@ fn the_key_feature_is_no_reference_while_its_neighbours_have_no_track() {
         let run = pick_through_images(seed);
         let vision = run.vision.expect("the run went through images");
         assert_eq!(vision.wrong_labels, 0, "seed {seed}: {vision:?}");
-        assert!(vision.labels > 3 * vision.frames, "seed {seed}: {vision:?}");
+        assert!(vision.labels > vision.frames, "seed {seed}: {vision:?}");
     }
 }
