@@ -29,10 +29,10 @@ pub const MAX_SEARCH_LEGS: usize = 4;
 /// the side the wrist hides one of them: through images the vision stage
 /// learns the marks only from frames that show both at once, so a camera that
 /// sees the gripper from its hidden side sees it in vain (images, seed 13: 12
-/// cells of 1,000 found no mark that ideal points showed, 10 of them after a
-/// turn). A quarter turn, then a half turn, the same way (away from joint 6's
-/// nearer stop: `Route::start_from`): each shows the camera another side of
-/// the wrist.
+/// cells of 1,000 found no mark that ideal points showed; with the turns
+/// all 12 pick). A quarter turn, then a half turn, the same way (away from
+/// joint 6's nearer stop: `Route::start_from`): each shows the camera
+/// another side of the wrist.
 pub const SEARCH_WRIST_TURNS_RAD: [f32; 3] =
     [0.0, core::f32::consts::FRAC_PI_2, core::f32::consts::PI];
 
