@@ -2,7 +2,7 @@
 //! (the disc plane is parallel to the base XY-plane, paper assumption A2), turned
 //! about the vertical to the part's yaw.
 
-use nalgebra::{convert, RealField, Rotation3};
+use nalgebra::{convert, RealField, Rotation3, UnitQuaternion, Vector3};
 
 use crate::robot::JointVector;
 
@@ -26,6 +26,14 @@ pub fn gripper_down_rotation<T: RealField + Copy>(yaw: T) -> Rotation3<T> {
         zero,
         -T::one(),
     ))
+}
+
+/// The gripper's yaw in `base_from_flange`: the angle of the flange's x axis
+/// in the base XY-plane (the inverse of [`gripper_down_rotation`] for a
+/// gripper pointing down).
+pub fn gripper_yaw(base_from_flange: &UnitQuaternion<f32>) -> f32 {
+    let x_axis = base_from_flange * Vector3::x();
+    libm::atan2f(x_axis.y, x_axis.x)
 }
 
 /// A gripper-down posture of the PUMA 560, the toolbox's nominal `qn` with the

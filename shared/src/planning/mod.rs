@@ -24,7 +24,7 @@ mod error;
 
 pub use arc::{ArcLimits, ArcMove, ArcPoint};
 pub use error::PlanError;
-pub use grasp_pose::{gripper_down_rotation, nearest_equivalent_yaw, ready_posture};
+pub use grasp_pose::{gripper_down_rotation, gripper_yaw, nearest_equivalent_yaw, ready_posture};
 pub use ik::{solve_ik, IkConfig};
 pub use intercept::{
     plan_intercept, plan_intercept_where, InterceptLimits, InterceptPlan, TaskState,

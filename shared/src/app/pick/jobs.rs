@@ -17,8 +17,8 @@ use crate::angle::wrap_pi;
 use crate::app::tool::{effector_marks_base, TOOL_LENGTH_M};
 use crate::observation::CameraIntrinsics;
 use crate::planning::{
-    gripper_down_rotation, plan_intercept_where, solve_ik, well_conditioned, within_reach,
-    ArcPoint, IkConfig, InterceptLimits, InterceptPlan, PlanError, TaskState,
+    gripper_down_rotation, gripper_yaw, plan_intercept_where, solve_ik, well_conditioned,
+    within_reach, ArcPoint, IkConfig, InterceptLimits, InterceptPlan, PlanError, TaskState,
 };
 use crate::robot::{JointVector, Puma560};
 
@@ -287,23 +287,12 @@ fn in_visiting_order(poses: &mut [ArcPoint<f32>], flange: Vector3<f32>) {
 /// seeded half a turn from every candidate's (images, seed 11, cell 264:
 /// `DiscOutOfReach`), or past its stop when turned back the wrong way.
 fn wrist_turned_to(robot: &Puma560<f32>, q: &JointVector<f32>, yaw: f32) -> JointVector<f32> {
-    let rotation = robot.forward_kinematics(q).rotation.to_rotation_matrix();
-    let present = libm::atan2f(rotation[(1, 0)], rotation[(0, 0)]);
+    let present = gripper_yaw(&robot.forward_kinematics(q).rotation);
     let limits = robot.joint_limits();
     let middle = 0.5 * (limits.position_min.b + limits.position_max.b);
     let turned = q.b - wrap_pi(yaw - present);
-    let tau = core::f32::consts::TAU;
-    let nearest = [turned - tau, turned, turned + tau]
-        .into_iter()
-        .fold(turned, |best, q6| {
-            if libm::fabsf(q6 - middle) < libm::fabsf(best - middle) {
-                q6
-            } else {
-                best
-            }
-        });
     let mut seed = *q;
-    seed.b = nearest;
+    seed.b = middle + wrap_pi(turned - middle);
     seed
 }
 
@@ -556,11 +545,7 @@ mod tests {
         assert!(seed[5] >= limits.position_min[5] && seed[5] <= limits.position_max[5]);
         assert!(reached(&seed), "seed {seed:?}");
         // The seed's yaw is the pose's.
-        let rotation = robot
-            .forward_kinematics(&seed)
-            .rotation
-            .to_rotation_matrix();
-        let seed_yaw = libm::atan2f(rotation[(1, 0)], rotation[(0, 0)]);
+        let seed_yaw = gripper_yaw(&robot.forward_kinematics(&seed).rotation);
         assert!(
             wrap_pi(seed_yaw - yaw).abs() < 0.05,
             "{seed_yaw} against {yaw}"

@@ -4,7 +4,6 @@
 //! the joint brake), the camera trigger and the telemetry.
 
 use heapless::Vec;
-use nalgebra::Vector3;
 
 use super::handoff::{ControlEvent, TriggerRecord};
 use super::motion::Motion;
@@ -79,8 +78,7 @@ impl PickController {
         let flange = kinematics.base_from_flange;
         self.tool_measured = tool_point_base(&flange);
         self.flange_measured = flange.translation.vector;
-        let x_axis = flange.rotation * Vector3::x();
-        self.tool_yaw_measured = libm::atan2f(x_axis.y, x_axis.x);
+        self.tool_yaw_measured = crate::planning::gripper_yaw(&flange.rotation);
 
         if stalled {
             self.on_stall(&flange);
