@@ -913,7 +913,7 @@ impl PickController {
         JobRequest::Estimate {
             preliminary,
             time_us: self.last_time_us,
-            start_pose: self.route.start_pose(),
+            start_pose: self.route.wrist_as_seen(),
             q_now: self.observer.q(),
             from,
             waist_centre_azimuth: self.route.waist_centre_azimuth(),

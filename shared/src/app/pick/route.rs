@@ -95,11 +95,6 @@ impl Route {
         Ok(())
     }
 
-    /// Where the arm started.
-    pub(super) fn start_pose(&self) -> ArcPoint<f32> {
-        self.start_pose
-    }
-
     /// The azimuth every arc keeps within half a turn of.
     pub(super) fn waist_centre_azimuth(&self) -> f32 {
         self.waist_centre_azimuth
@@ -142,6 +137,20 @@ impl Route {
             azimuth_rad: azimuth,
             z_m: self.search.flange_z_m(),
             yaw_rad: yaw_at_azimuth(&self.start_pose, azimuth) + self.search_wrist_turn(),
+        }
+    }
+
+    /// The start pose with the wrist turned as the search's present round
+    /// turned it: the calibration poses keep this wrist, the one the camera
+    /// was last shown both marks with (the marks lie across the wrist, which
+    /// hides one of them from a camera on that side; from poses at the start's
+    /// yaw after a round that had to turn it, seed 14 cell 181 through images
+    /// saw neither mark at any of its 8 poses and grasped 8.8 mm off on the
+    /// search's 13 sightings).
+    pub(super) fn wrist_as_seen(&self) -> ArcPoint<f32> {
+        ArcPoint {
+            yaw_rad: self.start_pose.yaw_rad + self.search_wrist_turn(),
+            ..self.start_pose
         }
     }
 
