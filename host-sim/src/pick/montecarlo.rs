@@ -55,6 +55,11 @@ pub struct TrialSummary {
     pub limit_part_in_base_mm: f64,
     pub final_part_yaw_deg: f64,
     pub limit_part_yaw_deg: f64,
+    /// With `--ml-limit` (NaN without): the same batch solve with the
+    /// robot-to-camera link known, the floor of the disc's frames alone
+    /// ([`super::ml_limit`]).
+    pub known_link_part_in_base_mm: f64,
+    pub known_link_part_yaw_deg: f64,
     /// The last estimate's own 1-sigma of the part in the base frame
     /// (`CalibrationReport::sigma_grasp_*`), mm and degrees, and how many
     /// estimates the pick made (preliminary included).
@@ -113,6 +118,8 @@ fn summarise(trial: usize, seed: u64, run: &PickRun) -> TrialSummary {
         limit_part_in_base_mm: nan,
         final_part_yaw_deg: nan,
         limit_part_yaw_deg: nan,
+        known_link_part_in_base_mm: nan,
+        known_link_part_yaw_deg: nan,
         sigma_grasp_horizontal_mm: sigma(|r| r.sigma_grasp_horizontal_m, 1e3),
         sigma_grasp_vertical_mm: sigma(|r| r.sigma_grasp_vertical_m, 1e3),
         sigma_grasp_yaw_deg: sigma(|r| r.sigma_grasp_yaw_rad, 180.0 / std::f64::consts::PI),
@@ -232,19 +239,22 @@ fn with_limit(summary: TrialSummary, limit: Option<&LimitErrors>) -> TrialSummar
             limit_part_in_base_mm: limit.limit.part_in_base_mm,
             final_part_yaw_deg: limit.controller.part_yaw_deg,
             limit_part_yaw_deg: limit.limit.part_yaw_deg,
+            known_link_part_in_base_mm: limit.known_link.part_in_base_mm,
+            known_link_part_yaw_deg: limit.known_link.part_yaw_deg,
             ..summary
         },
         None => summary,
     }
 }
 
-/// A quantity's (final estimate, limit) of a trial.
-type LimitColumns = fn(&TrialSummary) -> (f64, f64);
+/// A quantity's (final estimate, limit, limit with the link known) of a trial.
+type LimitColumns = fn(&TrialSummary) -> (f64, f64, f64);
 
 /// The controller's final estimate against the maximum-likelihood limit of
 /// the same frames (`--ml-limit`): median and 95th percentile of each, the
-/// ratio of the 95th percentiles and the median of the per-trial ratios.
-/// Empty when no trial measured it.
+/// ratio of the 95th percentiles and the median of the per-trial ratios;
+/// beside them the floor of the disc's frames alone (the robot-to-camera link
+/// known). Empty when no trial measured it.
 pub fn limit_table(summaries: &[TrialSummary]) -> String {
     let measured: Vec<&TrialSummary> = summaries
         .iter()
@@ -256,19 +266,30 @@ pub fn limit_table(summaries: &[TrialSummary]) -> String {
     let mut text = format!(
         "\nThe final estimate against the maximum-likelihood limit of the same frames \
          (the full batch solve, `host_sim::batch_ml`), {} trials; median / 95th percentile:\n\n\
-         | quantity | final estimate | limit | 95th ratio | paired ratio (median) |\n|---|---|---|---|---|\n",
+         | quantity | final estimate | limit | 95th ratio | paired ratio (median) | link known (disc frames' floor) |\n|---|---|---|---|---|---|\n",
         measured.len()
     );
     let rows: [(&str, LimitColumns); 2] = [
         ("part in the base frame, worst over a turn (mm)", |s| {
-            (s.final_part_in_base_mm, s.limit_part_in_base_mm)
+            (
+                s.final_part_in_base_mm,
+                s.limit_part_in_base_mm,
+                s.known_link_part_in_base_mm,
+            )
         }),
         ("part yaw (deg)", |s| {
-            (s.final_part_yaw_deg, s.limit_part_yaw_deg)
+            (
+                s.final_part_yaw_deg,
+                s.limit_part_yaw_deg,
+                s.known_link_part_yaw_deg,
+            )
         }),
     ];
     for (name, pick) in rows {
-        let (controller, limit): (Vec<f64>, Vec<f64>) = measured.iter().map(|s| pick(s)).unzip();
+        let columns: Vec<(f64, f64, f64)> = measured.iter().map(|s| pick(s)).collect();
+        let controller: Vec<f64> = columns.iter().map(|c| c.0).collect();
+        let limit: Vec<f64> = columns.iter().map(|c| c.1).collect();
+        let known_link: Vec<f64> = columns.iter().map(|c| c.2).collect();
         let ratios: Vec<f64> = controller
             .iter()
             .zip(&limit)
@@ -278,13 +299,15 @@ pub fn limit_table(summaries: &[TrialSummary]) -> String {
         let p95 = |v: &[f64]| percentile(v, 95.0);
         let _ = writeln!(
             text,
-            "| {name} | {:.3} / {:.3} | {:.3} / {:.3} | {:.2} | {:.2} |",
+            "| {name} | {:.3} / {:.3} | {:.3} / {:.3} | {:.2} | {:.2} | {:.3} / {:.3} |",
             percentile(&controller, 50.0),
             p95(&controller),
             percentile(&limit, 50.0),
             p95(&limit),
             p95(&controller) / p95(&limit),
-            percentile(&ratios, 50.0)
+            percentile(&ratios, 50.0),
+            percentile(&known_link, 50.0),
+            p95(&known_link)
         );
     }
     text
@@ -436,12 +459,12 @@ pub fn azimuth_table(summaries: &[TrialSummary]) -> String {
 /// Writes `trials.csv`: one line per trial.
 pub fn write_trials_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
     let mut text = String::from(
-        "trial,seed,result,success,estimate_error_x_mm,estimate_error_y_mm,estimate_error_z_mm,estimate_error_mm,estimate_yaw_error_deg,grasp_error_mm,grasp_yaw_error_deg,grasp_relative_speed_mm_s,calibrated_after_s,duration_s,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm,disc_azimuth_deg,disc_distance_m,disc_below_shoulder_m,final_part_in_base_mm,limit_part_in_base_mm,final_part_yaw_deg,limit_part_yaw_deg,sigma_grasp_horizontal_mm,sigma_grasp_vertical_mm,sigma_grasp_yaw_deg,estimates,frames_folded,folds_discarded,vision_frames,vision_labels,vision_wrong_labels\n",
+        "trial,seed,result,success,estimate_error_x_mm,estimate_error_y_mm,estimate_error_z_mm,estimate_error_mm,estimate_yaw_error_deg,grasp_error_mm,grasp_yaw_error_deg,grasp_relative_speed_mm_s,calibrated_after_s,duration_s,max_speed_ratio,max_torque_ratio,min_tool_clearance_mm,disc_azimuth_deg,disc_distance_m,disc_below_shoulder_m,final_part_in_base_mm,limit_part_in_base_mm,final_part_yaw_deg,limit_part_yaw_deg,known_link_part_in_base_mm,known_link_part_yaw_deg,sigma_grasp_horizontal_mm,sigma_grasp_vertical_mm,sigma_grasp_yaw_deg,estimates,frames_folded,folds_discarded,vision_frames,vision_labels,vision_wrong_labels\n",
     );
     for s in summaries {
         let _ = writeln!(
             text,
-            "{},{},\"{}\",{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.4},{:.4},{:.2},{:.2},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},{},{},{},{},{}",
+            "{},{},\"{}\",{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.4},{:.4},{:.2},{:.2},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},{},{},{},{},{}",
             s.trial,
             s.seed,
             s.result.replace('"', "'"),
@@ -466,6 +489,8 @@ pub fn write_trials_csv(path: &Path, summaries: &[TrialSummary]) -> Result<()> {
             s.limit_part_in_base_mm,
             s.final_part_yaw_deg,
             s.limit_part_yaw_deg,
+            s.known_link_part_in_base_mm,
+            s.known_link_part_yaw_deg,
             s.sigma_grasp_horizontal_mm,
             s.sigma_grasp_vertical_mm,
             s.sigma_grasp_yaw_deg,
