@@ -299,6 +299,23 @@ fn a_search_that_never_saw_both_marks_sweeps_again_with_the_wrist_turned() {
 }
 
 #[test]
+fn a_part_the_camera_never_shows_is_named() {
+    // Images seed 14, cell 92: the disc and the gripper's marks were seen,
+    // the part's features never labelled; after the search's wait for the
+    // part the stop said `CalibrationFailed`. Likewise a part whose marks
+    // are too small to resolve. The stop names the part, under control.
+    let run = pick_through_images(14_000_092);
+    assert_eq!(run.result, PickResult::Fault(FaultCause::PartNotSeen));
+    let mut experiment = PickScenarioFile::default_experiment("turning").unwrap();
+    experiment.camera.source = CameraSource::Images;
+    experiment.image.feature_mark_radius_m = 0.0006;
+    experiment.image.key_feature_mark_radius_m = 0.0008;
+    let run = run_pick_in_process(&experiment, 1).unwrap();
+    assert_eq!(run.result, PickResult::Fault(FaultCause::PartNotSeen));
+    assert!(run.grasp.is_none(), "a grasp was tried");
+}
+
+#[test]
 fn the_calibration_poses_keep_the_wrist_the_marks_were_seen_with() {
     // Cell 181 of `host-sim montecarlo --camera-source images --seed 14`:
     // the camera was shown both marks only in the search's third round,

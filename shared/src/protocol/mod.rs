@@ -46,9 +46,11 @@ pub use messages::*;
 /// without a frame of the disc's reference mark says so).
 /// v9: `CameraFeatureFrame::rim` and `CellConfig::disc_radius_m`: the disc's
 /// rim measured in each frame, an observation of the camera's pose.
+/// v10: `FaultCause::PartNotSeen` (no frame showed the part by the end of
+/// the search's wait for it).
 /// The handshake
 /// refuses any other version with `UnsupportedVersion` (detail: this one).
-pub const PROTOCOL_VERSION: u16 = 9;
+pub const PROTOCOL_VERSION: u16 = 10;
 
 #[cfg(test)]
 mod tests;

@@ -170,6 +170,12 @@ pub enum FaultCause {
     /// against it), rather than the camera not seeing the gripper
     /// (`EffectorNotSeen`). Added in v8.
     DiscNotSeen,
+    /// No camera frame had shown the part whole (every feature labelled)
+    /// when the search's wait for it ran out: the vision stage never
+    /// identified the part (or none rides on the disc), rather than the
+    /// calibration failing on the data it had (`CalibrationFailed`).
+    /// Added in v10.
+    PartNotSeen,
 }
 
 /// A snapshot of the controller's estimates, sent every `telemetry_period_ticks`.

@@ -423,7 +423,7 @@ fn the_documented_frame_limits_hold() {
 /// `CalibrationReport`, and the version says so.
 #[test]
 fn v2_appends_the_trigger_event_and_keeps_v1_encodings() {
-    assert_eq!(PROTOCOL_VERSION, 9);
+    assert_eq!(PROTOCOL_VERSION, 10);
     // postcard writes the variant index first: RuntimeReport was the last of
     // v1 (index 13), TriggerEvent is 14.
     let event = wire_bytes(&Message::TriggerEvent(TriggerEvent {

@@ -160,6 +160,13 @@ impl PickWorker {
                     what: "end-effector sightings",
                     ..
                 } => FaultCause::EffectorNotSeen,
+                // The search waits at its end for frames of the part; none
+                // came: say that, not that the calibration failed.
+                CalibrationError::TooFewObservations {
+                    what: "frames showing the part",
+                    found: 0,
+                    ..
+                } => FaultCause::PartNotSeen,
                 _ => FaultCause::CalibrationFailed,
             })?;
         let estimate = CellEstimate::new(&result, &sigma, time_us).with_folding(&self.calibrator);
