@@ -12,7 +12,9 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use super::estimate::CellEstimate;
 use super::motion::{flange_over, Prediction};
 use super::settings::PickSettings;
-use super::window::{grasp_window_holds, inside_with_margin, WINDOW_JOINT_MARGIN_RAD};
+use super::window::{
+    grasp_window_holds, inside_with_margin, yaw_offset_from, WINDOW_JOINT_MARGIN_RAD,
+};
 use crate::angle::wrap_pi;
 use crate::app::tool::{effector_marks_base, TOOL_LENGTH_M};
 use crate::observation::CameraIntrinsics;
@@ -358,7 +360,8 @@ fn reachable_at(
     if grasp.position.xy().norm() < MIN_RADIUS_FROM_BASE_AXIS_M {
         return false;
     }
-    let pose = flange_pose(&grasp.position, grasp.yaw);
+    let yaw = grasp.yaw + yaw_offset_from(q_seed, grasp.yaw, robot);
+    let pose = flange_pose(&grasp.position, yaw);
     within_reach(robot, &pose.translation.vector)
         && solve_ik(robot, &pose, q_seed, &IkConfig::default())
             .is_ok_and(|q| well_conditioned(robot, &q))

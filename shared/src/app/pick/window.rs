@@ -24,7 +24,10 @@ use super::motion::{flange_over, height_profile, Motion, Prediction};
 use super::route;
 use super::settings::PickSettings;
 use crate::app::pick::jobs::MIN_RADIUS_FROM_BASE_AXIS_M;
-use crate::planning::{solve_ik, well_conditioned, within_reach, IkConfig, TaskState};
+use crate::planning::{
+    gripper_yaw, nearest_equivalent_yaw, solve_ik, well_conditioned, within_reach, IkConfig,
+    TaskState,
+};
 use crate::robot::{JointVector, Puma560};
 
 /// How far inside its range every joint stays through the grasp window, rad
@@ -165,12 +168,21 @@ pub fn grasp_window_holds(
     (settings, longest_settle_s): (&PickSettings, f32),
     robot: &Puma560<f32>,
 ) -> bool {
-    let part_at = |tau: f32| {
+    let raw_at = |tau: f32| {
         estimate.grasp_point(
             prediction.theta_at_start + prediction.omega * tau,
             prediction.omega,
             0.0,
         )
+    };
+    // The intercept ends at the gripper's yaw nearest the arm's (modulo the
+    // gripper's half-turn symmetry, `InterceptPlan::between`), and the ride
+    // keeps it: the window is checked at that yaw.
+    let offset = yaw_offset_from(q_seed, raw_at(tau_end_s).yaw, robot);
+    let part_at = |tau: f32| {
+        let mut state = raw_at(tau);
+        state.yaw += offset;
+        state
     };
     let shortest = settings.track_settle_s;
     let longest = settings.track_window_s.max(shortest);
@@ -198,4 +210,44 @@ pub fn grasp_window_holds(
             settings,
             robot,
         )
+}
+
+/// What to add to a grasp yaw `yaw` for the gripper's equivalent yaw
+/// (modulo its half-turn symmetry) nearest the tool's at joints `q`: the yaw
+/// an intercept from `q` ends at ([`crate::planning::InterceptPlan`] turns
+/// the wrist no further than it must). An arm whose search turned the wrist
+/// half a turn (seed 14 cell 882 through images) had every window checked
+/// at the other yaw, a half turn of joint 6 away, and stopped with
+/// `PartOutOfReach`.
+pub fn yaw_offset_from(q: &JointVector<f32>, yaw: f32, robot: &Puma560<f32>) -> f32 {
+    let tool = gripper_yaw(&robot.forward_kinematics(q).rotation);
+    nearest_equivalent_yaw(tool, yaw, core::f32::consts::PI) - yaw
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::angle::wrap_pi;
+
+    #[test]
+    fn the_windows_yaw_is_the_equivalent_nearest_the_wrist() {
+        let robot = Puma560::<f32>::new();
+        let q = JointVector::from([0.3, 0.9, -2.6, 0.0, -0.9, 0.2]);
+        let tool = gripper_yaw(&robot.forward_kinematics(&q).rotation);
+        let mut turned = q;
+        turned.b += core::f32::consts::PI;
+        let tool_turned = gripper_yaw(&robot.forward_kinematics(&turned).rotation);
+        for yaw in [-3.0_f32, -1.2, 0.0, 0.4, 2.9] {
+            for (q, tool) in [(&q, tool), (&turned, tool_turned)] {
+                let offset = yaw_offset_from(q, yaw, &robot);
+                let half_turns = offset / core::f32::consts::PI;
+                assert!((half_turns - half_turns.round()).abs() < 1e-4, "{offset}");
+                assert!(
+                    wrap_pi(yaw + offset - tool).abs() <= core::f32::consts::FRAC_PI_2 + 1e-4,
+                    "yaw {yaw}: {} from the tool's {tool}",
+                    yaw + offset
+                );
+            }
+        }
+    }
 }
