@@ -2,9 +2,10 @@
 //! the pick uses is always the best so far). The calibrator takes every
 //! frame and sighting while the arm intercepts the part, so one more
 //! estimate is asked for as the intercept ends; it lands as the arm starts
-//! tracking the part, made from 8 to 15 s more of the disc turning than the
-//! final calibration, and replaces the estimate in use if it too is sure of
-//! the part and agrees with it. The part's state (Eq 1) then blends from the
+//! tracking the part, made from what came since the final calibration (in
+//! the default cell, whose intercept lasts 1 s, 6 frames and 6 sightings
+//! more; more where the part must first come round), and replaces the
+//! estimate in use if it too is sure of the part and agrees with it. The part's state (Eq 1) then blends from the
 //! replaced estimate to the new one over `estimate_fade_s` along a quintic,
 //! so the reference neither leaps nor jerks.
 

@@ -145,8 +145,8 @@ impl Route {
     /// was last shown both marks with (the marks lie across the wrist, which
     /// hides one of them from a camera on that side; from poses at the start's
     /// yaw after a round that had to turn it, seed 14 cell 181 through images
-    /// saw neither mark at any of its 8 poses and grasped 8.8 mm off on the
-    /// search's 13 sightings).
+    /// labelled no sighting at any of its 8 poses and grasped 8.8 mm off on
+    /// the search's 13 sightings).
     pub(super) fn wrist_as_seen(&self) -> ArcPoint<f32> {
         ArcPoint {
             yaw_rad: self.start_pose.yaw_rad + self.search_wrist_turn(),

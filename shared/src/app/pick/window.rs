@@ -26,7 +26,7 @@ use super::settings::PickSettings;
 use crate::app::pick::jobs::MIN_RADIUS_FROM_BASE_AXIS_M;
 use crate::planning::{
     gripper_yaw, nearest_equivalent_yaw, solve_ik, well_conditioned, within_reach, IkConfig,
-    TaskState,
+    InterceptLimits, TaskState,
 };
 use crate::robot::{JointVector, Puma560};
 
@@ -221,7 +221,8 @@ pub fn grasp_window_holds(
 /// `PartOutOfReach`.
 pub fn yaw_offset_from(q: &JointVector<f32>, yaw: f32, robot: &Puma560<f32>) -> f32 {
     let tool = gripper_yaw(&robot.forward_kinematics(q).rotation);
-    nearest_equivalent_yaw(tool, yaw, core::f32::consts::PI) - yaw
+    let symmetry = InterceptLimits::<f32>::default().yaw_symmetry_rad;
+    nearest_equivalent_yaw(tool, yaw, symmetry) - yaw
 }
 
 #[cfg(test)]
