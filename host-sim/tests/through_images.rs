@@ -4,13 +4,18 @@
 
 use host_sim::pick::record::{PickResult, PickRun};
 use host_sim::pick::runner::run_pick_in_process;
-use host_sim::scenario::pick::{CameraSource, PickScenarioFile};
+use host_sim::scenario::pick::{CameraSource, PickExperiment, PickScenarioFile};
 use shared::protocol::FaultCause;
 
-fn pick_through_images(seed: u64) -> PickRun {
+/// The default `turning` experiment, its frames made from camera images.
+fn turning_through_images() -> PickExperiment {
     let mut experiment = PickScenarioFile::default_experiment("turning").unwrap();
     experiment.camera.source = CameraSource::Images;
-    run_pick_in_process(&experiment, seed).unwrap()
+    experiment
+}
+
+fn pick_through_images(seed: u64) -> PickRun {
+    run_pick_in_process(&turning_through_images(), seed).unwrap()
 }
 
 /// How far the part's estimate was from the truth at the grasp, m.
@@ -196,8 +201,7 @@ fn a_search_that_never_saw_the_discs_reference_says_so() {
     // A cell whose disc is seen and whose gripper's marks never are (marks
     // too small for the camera to resolve, with the wrist turned every way)
     // keeps `EffectorNotSeen`, after the search's last round.
-    let mut experiment = PickScenarioFile::default_experiment("turning").unwrap();
-    experiment.camera.source = CameraSource::Images;
+    let mut experiment = turning_through_images();
     experiment.image.effector_mark_radii_m = [0.0008, 0.0006];
     let run = run_pick_in_process(&experiment, 1).unwrap();
     assert_eq!(run.result, PickResult::Fault(FaultCause::EffectorNotSeen));
@@ -306,8 +310,7 @@ fn a_part_the_camera_never_shows_is_named() {
     // are too small to resolve. The stop names the part, under control.
     let run = pick_through_images(14_000_092);
     assert_eq!(run.result, PickResult::Fault(FaultCause::PartNotSeen));
-    let mut experiment = PickScenarioFile::default_experiment("turning").unwrap();
-    experiment.camera.source = CameraSource::Images;
+    let mut experiment = turning_through_images();
     experiment.image.feature_mark_radius_m = 0.0006;
     experiment.image.key_feature_mark_radius_m = 0.0008;
     let run = run_pick_in_process(&experiment, 1).unwrap();
